@@ -1,0 +1,131 @@
+"""``clonedrive check DATA_DIR``: read a Udacity-format log and report what is usable."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+HELP = "check a Udacity-format driving log: usable rows, skipped rows and why, steering histogram"
+DESCRIPTION = (
+    "Read DATA_DIR/driving_log.csv (any Udacity-format log: simulator-written or the sample data "
+    "set, POSIX or Windows paths, header or none) and report rows, usable rows, rows skipped "
+    "grouped by reason with their line numbers, a steering histogram, the mean speed and the "
+    "recording's duration. Every image is decoded unless --no-decode is given. Exit status 0 "
+    "when the log is readable (even with skipped rows), 1 when the CSV is missing."
+)
+
+HISTOGRAM_BINS = 11
+BAR_WIDTH = 40
+ROWS_SHOWN = 5
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("data_dir", metavar="DATA_DIR", help="folder with driving_log.csv and IMG/")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--no-decode",
+        action="store_true",
+        help="only check that images exist (faster); by default every image is decoded",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from clonedrive.data.driving_log import read_driving_log
+
+    try:
+        log = read_driving_log(
+            args.data_dir,
+            verify_images="exists" if args.no_decode else "decode",
+            progress=not args.json and sys.stderr.isatty(),
+        )
+    except FileNotFoundError as error:
+        print(f"clonedrive check: {error}", file=sys.stderr)
+        return 1
+    summary = summarize(log)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(format_summary(log, summary))
+    for warning in log.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    return 0
+
+
+def summarize(log) -> dict:
+    """The figures ``check --json`` prints, from a read :class:`DrivingLog`."""
+    import numpy as np
+
+    from clonedrive.data.driving_log import image_time
+
+    groups = log.skipped_by_reason()
+    steering = np.array([row.steering for row in log.rows], dtype=np.float64)
+    speed = np.array([row.speed_mph for row in log.rows], dtype=np.float64)
+    counts, edges = np.histogram(steering, bins=HISTOGRAM_BINS, range=(-1.0, 1.0))
+    times = [image_time(row.center) for row in log.rows]
+    times = [moment for moment in times if moment is not None]
+    duration_s = (max(times) - min(times)).total_seconds() if times else None
+    has_rows = steering.size > 0
+    return {
+        "csv": str(log.csv_path),
+        "has_header": log.has_header,
+        "rows": log.total_rows,
+        "usable_rows": len(log.rows),
+        "skipped": {reason: len(items) for reason, items in groups.items()},
+        "skipped_rows": {reason: [item.row for item in items] for reason, items in groups.items()},
+        "images_missing": len(groups.get("image_missing", [])),
+        "images_corrupt": len(groups.get("image_corrupt", [])),
+        "steering_mean": float(steering.mean()) if has_rows else None,
+        "steering_std": float(steering.std()) if has_rows else None,
+        "steering_min": float(steering.min()) if has_rows else None,
+        "steering_max": float(steering.max()) if has_rows else None,
+        "steering_zero_fraction": float(np.mean(steering == 0.0)) if has_rows else None,
+        "steering_histogram": {
+            "edges": [float(edge) for edge in edges],
+            "counts": [int(count) for count in counts],
+        },
+        "speed_mean_mph": float(speed.mean()) if has_rows else None,
+        "duration_s": duration_s,
+        "warnings": list(log.warnings),
+    }
+
+
+def format_summary(log, summary: dict) -> str:
+    """The human-readable report."""
+    header = "header" if summary["has_header"] else "no header"
+    lines = [
+        f"driving log: {summary['csv']} ({header})",
+        f"rows: {summary['rows']}   usable: {summary['usable_rows']}   "
+        f"skipped: {summary['rows'] - summary['usable_rows']}",
+    ]
+    groups = log.skipped_by_reason()
+    if groups:
+        lines.append("skipped rows by reason:")
+        for reason, items in groups.items():
+            numbers = ", ".join(str(item.row) for item in items[:ROWS_SHOWN])
+            more = f" and {len(items) - ROWS_SHOWN} more" if len(items) > ROWS_SHOWN else ""
+            lines.append(f"  {reason}: {len(items)} (lines {numbers}{more})")
+            lines.append(f"    e.g. {items[0].detail}")
+    if summary["usable_rows"]:
+        lines.append("steering histogram (usable rows):")
+        counts = summary["steering_histogram"]["counts"]
+        edges = summary["steering_histogram"]["edges"]
+        peak = max(counts)
+        for index, count in enumerate(counts):
+            low, high = edges[index], edges[index + 1]
+            closing = "]" if index == len(counts) - 1 else ")"
+            bar = "#" * (round(BAR_WIDTH * count / peak) if peak else 0)
+            if count and not bar:
+                bar = "#"
+            lines.append(f"  [{low:+.2f}, {high:+.2f}{closing} {bar:<{BAR_WIDTH}} {count}")
+        lines.append(
+            f"steering: mean {summary['steering_mean']:+.4f}  std {summary['steering_std']:.4f}  "
+            f"min {summary['steering_min']:+.3f}  max {summary['steering_max']:+.3f}  "
+            f"exactly 0: {100 * summary['steering_zero_fraction']:.0f}%"
+        )
+        lines.append(f"speed: mean {summary['speed_mean_mph']:.2f} mph")
+    if summary["duration_s"] is not None:
+        lines.append(
+            f"duration: {summary['duration_s']:.1f} s (first to last center image timestamp)"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,545 @@
+"""The Udacity ``driving_log.csv`` format: the only code that reads or writes it.
+
+A log is a folder holding ``driving_log.csv`` and ``IMG/``. Each CSV row has seven unquoted
+fields ``center,left,right,steering,throttle,brake,speed``:
+
+- image paths as the recording machine wrote them (absolute POSIX, absolute Windows with ``\\``
+  or ``C:/``, or relative ``IMG/...``, sometimes after a leading space); every one is resolved
+  to ``<log folder>/IMG/<basename>``;
+- steering in [-1, 1] (= wheel angle / 25 deg), throttle and brake in [0, 1], speed in mph;
+  numbers as C# writes them (``0``, ``-0.2924528``, ``4.770404E-05``).
+
+The reader accepts every variant real users have (header or none, CRLF and LF mixed, blank lines,
+extra trailing spreadsheet columns) and never raises on a bad row: it skips the row and says why,
+with the 1-based line number. The writer appends one complete row per call and flushes it to disk,
+so a killed recorder leaves a log whose every row is whole.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from pathlib import Path
+
+CAMERAS = ("center", "left", "right")
+CSV_NAME = "driving_log.csv"
+IMAGE_FOLDER = "IMG"
+FIELD_NAMES = ("center", "left", "right", "steering", "throttle", "brake", "speed")
+HEADER_LINE = ",".join(FIELD_NAMES)
+
+# Udacity images are 320x160 RGB: (rows, columns, channels) as OpenCV returns them.
+IMAGE_SHAPE = (160, 320, 3)
+# Values this far outside their range still count as in range (float32 printing noise);
+# they are clamped to the range.
+RANGE_TOLERANCE = 1e-3
+VERIFY_MODES = ("none", "exists", "decode")
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NON_FINITE = re.compile(r"[+-]?(?:nan|inf|infinity|\u221e)", re.IGNORECASE)
+_IMAGE_TIME = re.compile(
+    r"(?:center|left|right)_(\d{4})_(\d{2})_(\d{2})_(\d{2})_(\d{2})_(\d{2})_(\d{3})\.\w+$"
+)
+# (field name, index, lowest, highest); None = unbounded.
+_RANGES = (
+    ("steering", 3, -1.0, 1.0),
+    ("throttle", 4, 0.0, 1.0),
+    ("brake", 5, 0.0, 1.0),
+    ("speed", 6, 0.0, None),
+)
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LogRow:
+    """One usable sample."""
+
+    row: int  # 1-based line number in the CSV file
+    center: Path  # resolved to <log dir>/IMG/<basename>
+    left: Path
+    right: Path
+    steering: float  # [-1, 1] = wheel angle / 25 deg
+    throttle: float  # [0, 1]
+    brake: float  # [0, 1]
+    speed_mph: float
+
+    def image(self, camera: str) -> Path:
+        """The image path of ``camera`` (one of :data:`CAMERAS`)."""
+        if camera not in CAMERAS:
+            raise ValueError(f"unknown camera {camera!r}; expected one of {', '.join(CAMERAS)}")
+        return getattr(self, camera)
+
+
+@dataclass(frozen=True)
+class SkippedRow:
+    """A row the reader could not use.
+
+    ``reason`` is a category key: ``field_count``, ``non_numeric`` (includes NaN and infinity),
+    ``out_of_range``, ``image_missing``, ``image_corrupt``, ``image_size`` (decodes, but is not
+    320x160x3) or ``empty`` (a blank line).
+    """
+
+    row: int
+    reason: str
+    detail: str  # human sentence naming the field/file
+
+
+@dataclass
+class DrivingLog:
+    """A read log: the usable rows, the skipped ones, and file-level warnings."""
+
+    folder: Path
+    csv_path: Path
+    rows: list[LogRow]
+    skipped: list[SkippedRow]
+    total_rows: int  # data rows seen (header excluded) = len(rows) + len(skipped)
+    has_header: bool
+    # File-level notes that skip no row: not UTF-8, a repeated header line.
+    warnings: list[str] = field(default_factory=list)
+
+    def skipped_by_reason(self) -> dict[str, list[SkippedRow]]:
+        """Skipped rows grouped by reason, reasons in order of first appearance."""
+        groups: dict[str, list[SkippedRow]] = {}
+        for skipped in self.skipped:
+            groups.setdefault(skipped.reason, []).append(skipped)
+        return groups
+
+
+def resolve_csv_path(path: str | os.PathLike) -> Path:
+    """``path/driving_log.csv`` if ``path`` is a folder, else ``path`` (the CSV itself)."""
+    path = Path(path)
+    return path / CSV_NAME if path.is_dir() else path
+
+
+def image_basename(recorded_path: str) -> str:
+    """The file name of a path as any OS wrote it (``/``, ``\\`` or ``C:/`` separators)."""
+    return re.split(r"[\\/]", recorded_path.strip())[-1]
+
+
+def image_name(camera: str, start: datetime, elapsed_s: float) -> str:
+    """The simulator's image file name for ``camera`` at ``start + elapsed_s`` seconds.
+
+    ``image_name("center", datetime(2026, 11, 21, 10, 11, 12), 0.345)`` is
+    ``"center_2026_11_21_10_11_12_345.jpg"`` (milliseconds truncated, as the simulator does).
+    """
+    if camera not in CAMERAS:
+        raise ValueError(f"unknown camera {camera!r}; expected one of {', '.join(CAMERAS)}")
+    moment = start + timedelta(seconds=elapsed_s)
+    return f"{camera}_{moment:%Y_%m_%d_%H_%M_%S}_{moment.microsecond // 1000:03d}.jpg"
+
+
+def image_time(name: str | os.PathLike) -> datetime | None:
+    """The timestamp in a simulator image name (``center_2017_07_22_10_11_12_345.jpg``), or
+    None if the name does not carry one."""
+    match = _IMAGE_TIME.search(image_basename(os.fspath(name)))
+    if match is None:
+        return None
+    year, month, day, hour, minute, second, millis = (int(part) for part in match.groups())
+    try:
+        return datetime(year, month, day, hour, minute, second, millis * 1000)
+    except ValueError:  # e.g. month 13: a name that only looks like a timestamp
+        return None
+
+
+def read_driving_log(
+    path: str | os.PathLike, *, verify_images: str = "exists", progress: bool = False
+) -> DrivingLog:
+    """Read a Udacity-format log.
+
+    Args:
+        path: the folder holding ``driving_log.csv``, or the CSV file itself.
+        verify_images: ``"none"`` (trust the paths), ``"exists"`` (each of the three images must
+            be a file) or ``"decode"`` (each must also decode with OpenCV; a size other than
+            320x160 is reported as ``image_size``).
+        progress: show a tqdm progress bar (stderr) while verifying images.
+
+    Raises:
+        FileNotFoundError: only if the CSV itself is missing. A bad row is skipped and reported
+        in ``DrivingLog.skipped``, never raised.
+    """
+    if verify_images not in VERIFY_MODES:
+        raise ValueError(
+            f"verify_images={verify_images!r}; expected one of {', '.join(VERIFY_MODES)}"
+        )
+    csv_path = resolve_csv_path(path)
+    if not csv_path.is_file():
+        raise FileNotFoundError(
+            f"no driving log at {csv_path}: expected a folder holding {CSV_NAME} and "
+            f"{IMAGE_FOLDER}/, or the path of the CSV file"
+        )
+    folder = csv_path.parent
+    image_folder = folder / IMAGE_FOLDER
+    raw = csv_path.read_bytes()
+    warnings: list[str] = []
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        text = raw.decode("utf-8-sig", errors="replace")
+        warnings.append(
+            f"{csv_path}: not UTF-8 (first bad byte at offset {error.start}); "
+            "undecodable bytes were replaced with U+FFFD"
+        )
+
+    rows: list[LogRow] = []
+    skipped: list[SkippedRow] = []
+    has_header = False
+    seen_data = False
+    for line_number, line in _lines(text):
+        fields = line.split(",")
+        if len(fields) >= 4 and fields[3].strip().lower() == "steering":
+            if not seen_data and not has_header:
+                has_header = True
+            else:
+                warnings.append(f"{csv_path}: line {line_number}: repeated header ignored")
+            continue
+        seen_data = seen_data or bool(line.strip())
+        parsed = _parse_row(line_number, fields, image_folder)
+        (rows if isinstance(parsed, LogRow) else skipped).append(parsed)
+
+    if verify_images != "none":
+        rows, bad_images = _verify_images(rows, decode=verify_images == "decode", progress=progress)
+        skipped = sorted(skipped + bad_images, key=lambda item: item.row)
+    return DrivingLog(
+        folder=folder,
+        csv_path=csv_path,
+        rows=rows,
+        skipped=skipped,
+        total_rows=len(rows) + len(skipped),
+        has_header=has_header,
+        warnings=warnings,
+    )
+
+
+def _lines(text: str) -> Iterator[tuple[int, str]]:
+    """(1-based line number, line without its ending) for CRLF, LF or lone-CR endings."""
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()  # the text after the final newline
+    yield from enumerate(lines, start=1)
+
+
+def _parse_row(line_number: int, fields: list[str], image_folder: Path) -> LogRow | SkippedRow:
+    """One CSV line's fields -> a LogRow, or the reason it is unusable (images not checked)."""
+    if all(not item.strip() for item in fields):
+        return SkippedRow(line_number, "empty", f"line {line_number} is blank")
+    count = len(fields)
+    if count < len(FIELD_NAMES):
+        return SkippedRow(
+            line_number,
+            "field_count",
+            f"line {line_number} has {count} fields, expected 7 ({HEADER_LINE})",
+        )
+    if count > len(FIELD_NAMES):
+        tail = [item.strip() for item in fields[3:]]
+        if all(_NUMBER.fullmatch(item) for item in tail):
+            return SkippedRow(
+                line_number,
+                "field_count",
+                f"line {line_number} has {count} fields, expected 7, and the extra ones are "
+                f"numbers: {','.join(tail)!r} looks written in a comma-decimal locale "
+                "(0,5 for 0.5); record with a '.'-decimal locale or convert the file",
+            )
+        numbers_in_extras = any(_NUMBER.fullmatch(item) for item in tail[4:])
+        if numbers_in_extras or not all(_NUMBER.fullmatch(item) for item in tail[:4]):
+            return SkippedRow(
+                line_number,
+                "field_count",
+                f"line {line_number} has {count} fields, expected 7, and fields 4-7 are not "
+                "the four numbers (a comma inside an image path?)",
+            )
+        # Otherwise: extra trailing columns (e.g. spreadsheet leftovers); keep the first seven.
+
+    values: list[float] = []
+    for name, index, low, high in _RANGES:
+        text = fields[index].strip()
+        if _NON_FINITE.fullmatch(text):
+            return SkippedRow(
+                line_number,
+                "non_numeric",
+                f"line {line_number}: {name} is {text!r}, expected a finite number",
+            )
+        if not _NUMBER.fullmatch(text):
+            return SkippedRow(
+                line_number,
+                "non_numeric",
+                f"line {line_number}: {name} is {text!r}, expected a number",
+            )
+        value = float(text)
+        if not math.isfinite(value):  # e.g. 1e400
+            return SkippedRow(
+                line_number,
+                "non_numeric",
+                f"line {line_number}: {name} is {text!r}, too large to be a finite number",
+            )
+        if (low is not None and value < low - RANGE_TOLERANCE) or (
+            high is not None and value > high + RANGE_TOLERANCE
+        ):
+            expected = f"[{low:g}, {high:g}]" if high is not None else f">= {low:g}"
+            return SkippedRow(
+                line_number,
+                "out_of_range",
+                f"line {line_number}: {name} is {value:g}, expected {expected}",
+            )
+        value = max(value, low) if low is not None else value
+        value = min(value, high) if high is not None else value
+        values.append(value + 0.0)  # + 0.0 turns -0.0 into 0.0
+
+    paths: list[Path] = []
+    for camera, recorded in zip(CAMERAS, fields[:3], strict=True):
+        basename = image_basename(recorded)
+        if not basename:
+            return SkippedRow(
+                line_number,
+                "image_missing",
+                f"line {line_number}: the {camera} image path {recorded.strip()!r} names no file",
+            )
+        paths.append(image_folder / basename)
+    steering, throttle, brake, speed_mph = values
+    return LogRow(line_number, *paths, steering, throttle, brake, speed_mph)
+
+
+def _verify_images(
+    rows: list[LogRow], *, decode: bool, progress: bool
+) -> tuple[list[LogRow], list[SkippedRow]]:
+    """Split rows into those whose three images are fine and those skipped for an image."""
+    if decode:
+        import cv2
+        import numpy as np
+
+    def problem(row: LogRow) -> SkippedRow | None:
+        for camera in CAMERAS:
+            image_path = row.image(camera)
+            if not image_path.is_file():
+                return SkippedRow(
+                    row.row,
+                    "image_missing",
+                    f"line {row.row}: {camera} image {image_path} does not exist",
+                )
+        if not decode:
+            return None
+        for camera in CAMERAS:
+            image_path = row.image(camera)
+            data = image_path.read_bytes()
+            if data.startswith(b"\xff\xd8") and not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
+                return SkippedRow(
+                    row.row,
+                    "image_corrupt",
+                    f"line {row.row}: {camera} image {image_path} is a truncated JPEG "
+                    "(no end-of-image marker)",
+                )
+            image = None
+            if data:
+                try:
+                    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+                except cv2.error:
+                    image = None
+            if image is None:
+                return SkippedRow(
+                    row.row,
+                    "image_corrupt",
+                    f"line {row.row}: {camera} image {image_path} does not decode as an image",
+                )
+            if image.shape != IMAGE_SHAPE:
+                height, width = image.shape[:2]
+                return SkippedRow(
+                    row.row,
+                    "image_size",
+                    f"line {row.row}: {camera} image {image_path} is {width}x{height}, "
+                    "expected 320x160",
+                )
+        return None
+
+    iterable = rows
+    if progress:
+        from tqdm import tqdm
+
+        iterable = tqdm(rows, desc="checking images", unit="row", leave=False)
+    good: list[LogRow] = []
+    bad: list[SkippedRow] = []
+    for row in iterable:
+        found = problem(row)
+        if found is None:
+            good.append(row)
+        else:
+            bad.append(found)
+    return good, bad
+
+
+def format_number(value: float) -> str:
+    """A number as the log stores it: up to 7 significant digits, no trailing zeros
+    (``0``, ``-0.2345``, ``4.770404e-05``)."""
+    return format(float(value) + 0.0, ".7g")
+
+
+class DrivingLogWriter:
+    """Append rows to ``<folder>/driving_log.csv`` in the simulator's format, one complete row
+    per :meth:`append`, each written with a single ``write`` call and then ``os.fsync``-ed.
+
+    Rows are seven unquoted fields, ``\\n``-terminated; numbers use :func:`format_number`.
+    Image paths are written absolute (as the simulator does) or, with ``relative_paths=True``,
+    as ``IMG/<basename>``. Either way the reader finds an image at ``<folder>/IMG/<basename>``,
+    so images must be written there (this writer creates ``IMG/``). A relative path given to
+    :meth:`append` is taken relative to ``folder``.
+
+    Crash safety: a process killed mid-row can leave at most one incomplete last line. When
+    appending to an existing log whose last line has no newline, the writer looks at that line:
+    if it is a whole, parseable row (a log from a tool that omits the final newline) it is
+    kept and terminated with ``\\n``; otherwise it is a torn write and is truncated away. Either
+    way ``repaired_tail`` says what was done and a warning is logged.
+
+    ``header=True`` writes ``center,left,right,steering,throttle,brake,speed`` first, only
+    when the file is new or empty. ``append=False`` starts a new file, replacing any old one.
+    ``fsync=False`` skips the per-row fsync (the row is still written in one call).
+    """
+
+    def __init__(
+        self,
+        folder: str | os.PathLike,
+        *,
+        header: bool = False,
+        relative_paths: bool = False,
+        append: bool = True,
+        fsync: bool = True,
+    ) -> None:
+        self.folder = Path(folder).absolute()
+        self.csv_path = self.folder / CSV_NAME
+        self.relative_paths = relative_paths
+        self.fsync = fsync
+        self.rows_written = 0
+        self.repaired_tail: str | None = None  # "terminated" / "truncated" / None
+        if not relative_paths:
+            _check_path_text(str(self.folder), "log folder (use relative_paths=True)")
+        (self.folder / IMAGE_FOLDER).mkdir(parents=True, exist_ok=True)
+
+        existed = self.csv_path.exists()
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | getattr(os, "O_BINARY", 0)
+        if not append:
+            flags |= os.O_TRUNC
+        self._fd: int | None = os.open(self.csv_path, flags, 0o644)
+        if append and existed:
+            self._repair_tail()
+        if not existed and os.name == "posix":
+            _fsync_directory(self.folder)
+        if header and os.fstat(self._fd).st_size == 0:
+            self._write_line(HEADER_LINE)
+
+    def append(
+        self,
+        center: Path,
+        left: Path,
+        right: Path,
+        steering: float,
+        throttle: float,
+        brake: float,
+        speed_mph: float,
+    ) -> None:
+        """Write one row and flush it to disk. Raises ValueError for a value the reader would
+        reject (non-finite or out of range) or a path that would break the CSV row."""
+        if self._fd is None:
+            raise ValueError(f"{self.csv_path}: writer is closed")
+        values = (steering, throttle, brake, speed_mph)
+        for (name, _index, low, high), value in zip(_RANGES, values, strict=True):
+            value = float(value)
+            if not math.isfinite(value):
+                raise ValueError(f"{name} is {value}, expected a finite number")
+            if (low is not None and value < low - RANGE_TOLERANCE) or (
+                high is not None and value > high + RANGE_TOLERANCE
+            ):
+                expected = f"[{low:g}, {high:g}]" if high is not None else f">= {low:g}"
+                raise ValueError(f"{name} is {value:g}, expected {expected}")
+        path_texts = [self._path_text(Path(path)) for path in (center, left, right)]
+        self._write_line(",".join([*path_texts, *(format_number(value) for value in values)]))
+        self.rows_written += 1
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> DrivingLogWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def _path_text(self, path: Path) -> str:
+        if self.relative_paths:
+            text = f"{IMAGE_FOLDER}/{path.name}"
+        else:
+            text = str(path if path.is_absolute() else self.folder / path)
+        _check_path_text(text, "image path")
+        return text
+
+    def _write_line(self, line: str) -> None:
+        data = (line + "\n").encode("utf-8")
+        written = os.write(self._fd, data)
+        while written < len(data):  # a short write to a regular file is rare; finish it
+            written += os.write(self._fd, data[written:])
+        if self.fsync:
+            os.fsync(self._fd)
+
+    def _repair_tail(self) -> None:
+        """Terminate or truncate an incomplete last line left by a killed writer."""
+        with open(self.csv_path, "rb") as handle:
+            handle.seek(0, os.SEEK_END)
+            size = handle.tell()
+            if size == 0:
+                return
+            handle.seek(size - 1)
+            if handle.read(1) == b"\n":
+                return
+            start = max(0, size - 65536)
+            handle.seek(start)
+            tail = handle.read()
+        newline = tail.rfind(b"\n")
+        if newline < 0 and start > 0:
+            raise ValueError(f"{self.csv_path}: last line is longer than 64 KiB; not a log?")
+        keep = start + newline + 1  # 0 when the file holds a single incomplete line
+        partial = tail[newline + 1 :].decode("utf-8", errors="replace")
+        fields = partial.rstrip("\r").split(",")
+        if _looks_whole(fields):
+            self._write_line("")
+            self.repaired_tail = "terminated"
+            logger.warning("%s: last line had no newline; terminated it", self.csv_path)
+        else:
+            os.truncate(self.csv_path, keep)
+            self.repaired_tail = "truncated"
+            logger.warning(
+                "%s: removed an incomplete last line (%d bytes) left by an interrupted write",
+                self.csv_path,
+                size - keep,
+            )
+
+
+def _looks_whole(fields: list[str]) -> bool:
+    """True if ``fields`` form a complete row (header or data), not a torn write."""
+    if len(fields) == len(FIELD_NAMES) and [item.strip() for item in fields] == list(FIELD_NAMES):
+        return True
+    if len(fields) != len(FIELD_NAMES):
+        return False
+    if not all(image_basename(item) for item in fields[:3]):
+        return False
+    return all(_NUMBER.fullmatch(item.strip()) for item in fields[3:])
+
+
+def _check_path_text(text: str, what: str) -> None:
+    if "," in text or "\n" in text or "\r" in text:
+        raise ValueError(
+            f"{what} {text!r} contains a comma or line break, which would break the "
+            "unquoted CSV row"
+        )
+
+
+def _fsync_directory(folder: Path) -> None:
+    """Make a newly created file's directory entry durable (POSIX only)."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

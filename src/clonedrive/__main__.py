@@ -1,0 +1,5 @@
+import sys
+
+from clonedrive.cli import main
+
+sys.exit(main())

@@ -1,0 +1,82 @@
+"""The one console entry, ``clonedrive``: a table of verbs in data-flow order.
+
+Each verb lives in ``clonedrive.commands.<module>`` and provides ``HELP`` (one line),
+``add_arguments(parser)`` and ``run(args) -> int``. Command modules import heavy libraries
+(Keras, Panda3D) inside ``run`` so that ``clonedrive --help`` stays instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# (verb, module under clonedrive.commands) in data-flow order.
+VERBS: list[tuple[str, str]] = [
+    ("demo", "demo"),
+    ("tracks", "tracks"),
+    ("sim", "sim"),
+    ("record", "record"),
+    ("check", "check"),
+    ("train", "train"),
+    ("drive", "drive"),
+    ("autonomous", "autonomous"),
+    ("evaluate", "evaluate"),
+    ("video", "video"),
+    ("report", "report"),
+]
+
+
+def _available_verbs() -> list[tuple[str, object]]:
+    verbs = []
+    for verb, module_name in VERBS:
+        try:
+            module = importlib.import_module(f"clonedrive.commands.{module_name}")
+        except ModuleNotFoundError as error:
+            if error.name == f"clonedrive.commands.{module_name}":
+                continue  # verb not built yet
+            raise
+        verbs.append((verb, module))
+    return verbs
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="clonedrive",
+        description=(
+            "Behavioural cloning of driving: record an expert in a headless 3D simulator, "
+            "train a Keras network to steer from one camera image, and prove in closed loop "
+            "that it drives. Compatible with the Udacity simulator's data and drive protocol."
+        ),
+    )
+    from clonedrive import __version__
+
+    parser.add_argument("--version", action="version", version=f"clonedrive {__version__}")
+    subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
+    for verb, module in _available_verbs():
+        sub = subparsers.add_parser(
+            verb,
+            help=module.HELP,
+            description=getattr(module, "DESCRIPTION", module.HELP),
+            formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        )
+        module.add_arguments(sub)
+        sub.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.verb is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

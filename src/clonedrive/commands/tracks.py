@@ -1,0 +1,78 @@
+"""``clonedrive tracks``: list tracks with their figures and draw a map (and camera strip) each."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+HELP = "list tracks (length, width, elevation, tightest curve) and draw their maps"
+DESCRIPTION = (
+    "List the built-in tracks (or those named with --track: a JSON file or gen:<seed>) with "
+    "length, width, elevation range, minimum radius and maximum grade, and write for each a "
+    "top-down map PNG (road, direction, start line, elevation by colour) and a strip of "
+    "center/left/right camera frames at a few places along the track."
+)
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--track", action="append", default=None, metavar="NAME",
+                        help="track name, gen:<seed> or path to a .json track (repeatable); "
+                             "default: all built-in tracks")
+    parser.add_argument("--out", default="runs/tracks", help="folder for the map and strip PNGs")
+    parser.add_argument("--no-images", action="store_true",
+                        help="only print the figures: no map or camera strip")
+    parser.add_argument("--no-strip", action="store_true",
+                        help="draw the maps but skip rendering camera strips")
+    parser.add_argument("--json", action="store_true", help="print the figures as a JSON list")
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from clonedrive.world.track import TrackError, builtin_track_names, load_track
+
+    names = args.track or builtin_track_names()
+    out = Path(args.out)
+    rows = []
+    for name in names:
+        try:
+            track = load_track(name)
+        except TrackError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        row = track.summary()
+        if not args.no_images:
+            from clonedrive.report.maps import plot_track_map
+
+            safe = track.name.replace(":", "_")
+            row["map_png"] = str(plot_track_map(track, out / f"{safe}_map.png"))
+            if not args.no_strip:
+                strip = _write_strip(track, out / f"{safe}_cameras.png")
+                if strip is not None:
+                    row["cameras_png"] = str(strip)
+        rows.append(row)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    header = f"{'track':<12}{'length m':>10}{'width m':>9}{'elev. range m':>15}" \
+             f"{'min radius m':>14}{'max grade %':>13}"
+    print(header)
+    for row in rows:
+        print(f"{row['name']:<12}{row['length_m']:>10.0f}{row['width_m']:>9.1f}"
+              f"{row['elevation_range_m']:>15.1f}{row['min_radius_m']:>14.1f}"
+              f"{100 * row['max_grade']:>13.1f}")
+    for row in rows:
+        for key in ("map_png", "cameras_png"):
+            if key in row:
+                print(f"wrote {row[key]}")
+    return 0
+
+
+def _write_strip(track, path):
+    try:
+        from clonedrive.sim.preview import write_track_strip
+    except ModuleNotFoundError as error:
+        if error.name != "clonedrive.sim.preview":
+            raise
+        return None
+    return write_track_strip(track, path)

@@ -1,0 +1,70 @@
+"""Stage configuration: frozen dataclasses, unknown keys rejected, saved as ``config.json``.
+
+Each stage defines its own frozen dataclass next to the code that uses it (defaults are defined
+once, there); this module holds the shared loading/saving rules.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+
+def config_from_dict(cls: type[T], values: dict[str, Any], *, source: str = "config") -> T:
+    """Build ``cls`` from ``values``; unknown keys raise ``ValueError`` naming them."""
+    if not dataclasses.is_dataclass(cls):
+        raise TypeError(f"{cls!r} is not a dataclass")
+    known = {field.name for field in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(
+            f"{source}: unknown key(s) {', '.join(unknown)} for {cls.__name__}; "
+            f"expected some of: {', '.join(sorted(known))}"
+        )
+    return cls(**values)
+
+
+def config_to_dict(config: Any) -> dict[str, Any]:
+    """A JSON-ready dict of a (possibly nested) config dataclass; tuples become lists."""
+    return json.loads(json.dumps(dataclasses.asdict(config), default=str))
+
+
+def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
+    """Write ``data`` as indented JSON via a temp file + rename, so readers never see half."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            json.dump(data, handle, indent=2, sort_keys=False)
+            handle.write("\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def save_config(config: Any, path: str | os.PathLike, **extra: Any) -> Path:
+    """Save a config dataclass (plus ``extra`` top-level entries) as JSON, atomically."""
+    data = config_to_dict(config)
+    data.update(extra)
+    return write_json_atomic(path, data)
+
+
+def load_config(cls: type[T], path: str | os.PathLike) -> T:
+    """Load a config dataclass saved by :func:`save_config` (extra top-level keys ignored
+    only if they were saved as extras is not supported: every key must be a field)."""
+    with open(path, encoding="utf-8") as handle:
+        values = json.load(handle)
+    if not isinstance(values, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    return config_from_dict(cls, values, source=str(path))

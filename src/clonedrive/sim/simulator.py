@@ -1,0 +1,309 @@
+"""The simulator: a car on a track, stepped at the control rate with physics sub-steps.
+
+``Simulator(track, config)`` follows the Gymnasium shape without being an Env itself:
+``reset(seed, options) -> (observation, info)`` and ``step(controls) -> (observation, info)``.
+The Gymnasium Env (``clonedrive.envs``) sits on top. Cameras are rendered by Panda3D only when the
+configuration asks for them; the engine is owned by this object and released by :meth:`close`.
+
+Measurement conventions (DESIGN.md): CTE + = right of centre in the driving direction; an off-road
+event is the moment any tyre's contact point leaves the road surface, checked every control step;
+a lap is completed when the car crosses the start line again having covered the whole track in the
+driving direction with no off-road event.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from clonedrive.world.track import Track, load_track, wrap_angle
+from clonedrive.world.vehicle import (
+    MPH_TO_MPS,
+    Controls,
+    RoadContact,
+    VehicleParams,
+    VehicleState,
+    tyre_positions,
+)
+from clonedrive.world.vehicle import step as vehicle_step
+
+__all__ = ["Controls", "OffRoadEvent", "SimConfig", "SimObservation", "Simulator"]
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """How the simulator runs. Defaults match the Udacity simulator's recording rig."""
+
+    control_hz: float = 15.0  #: control (and camera) rate [Hz]: Udacity records at ~15 Hz
+    physics_hz: float = 150.0  #: physics sub-step rate [Hz], a multiple of control_hz
+    cameras: tuple[str, ...] = ("center", "left", "right")  #: () = state only, no rendering
+    image_width: int = 320
+    image_height: int = 160
+    scenery: bool = True  #: trees, rocks, barriers... (off: road and terrain only)
+    randomize: bool = False  #: domain randomisation of light, fog, tint, camera height, noise
+    vehicle: VehicleParams = field(default_factory=VehicleParams)
+
+    def __post_init__(self) -> None:
+        substeps = self.physics_hz / self.control_hz
+        if self.control_hz <= 0 or abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
+            raise ValueError(
+                f"physics_hz ({self.physics_hz}) must be a positive multiple of control_hz "
+                f"({self.control_hz})"
+            )
+        unknown = set(self.cameras) - {"center", "left", "right"}
+        if unknown:
+            raise ValueError(f"unknown camera(s) {sorted(unknown)}; use center, left, right")
+
+
+@dataclass(frozen=True)
+class OffRoadEvent:
+    """A tyre left the road."""
+
+    time_s: float
+    s_m: float  #: arc length in the driving direction
+    x_m: float
+    y_m: float
+    cte_m: float
+    lap: int  #: index of the lap being driven (0 = first)
+
+
+@dataclass(frozen=True)
+class SimObservation:
+    """Everything measured after a step (see contracts: images are uint8 RGB H x W x 3)."""
+
+    time_s: float
+    images: dict
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+    pitch_rad: float  #: + = nose up
+    roll_rad: float  #: + = right side down
+    speed_mph: float
+    steering: float
+    throttle: float
+    brake: float
+    s_m: float
+    cte_m: float
+    heading_error_rad: float
+    tyres_on_road: tuple[bool, bool, bool, bool]
+    off_road: bool
+    laps: int
+    distance_m: float
+    off_road_events: int
+    lap_progress: float  #: fraction of the current lap covered, 0..1
+    curvature_per_m: float  #: road curvature here, in the driving direction (+ = left)
+
+    def state_vector(self) -> np.ndarray:
+        """A compact float32 state: speed, steering, CTE, heading error, curvature, on-road."""
+        return np.array(
+            [self.speed_mph, self.steering, self.cte_m, self.heading_error_rad,
+             self.curvature_per_m, float(all(self.tyres_on_road))],
+            dtype=np.float32,
+        )
+
+
+class Simulator:
+    """A car on a track. Use as a context manager, or call :meth:`close`."""
+
+    def __init__(self, track: Track | str, config: SimConfig | None = None):
+        self.track = load_track(track) if isinstance(track, str) else track
+        self.config = config or SimConfig()
+        self.params = self.config.vehicle
+        self._substeps = int(round(self.config.physics_hz / self.config.control_hz))
+        self._dt_s = 1.0 / self.config.physics_hz
+        self._scene = None
+        self._rig = None
+        self._state = VehicleState()
+        self._obs: SimObservation | None = None
+        self.events: list[OffRoadEvent] = []
+
+    # ------------------------------------------------------------------ lifecycle
+    def __enter__(self) -> Simulator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release the rendering engine (if one was opened)."""
+        if self._rig is not None and hasattr(self._rig, "close"):
+            self._rig.close()
+        if self._scene is not None:
+            self._scene.close()
+        self._rig = None
+        self._scene = None
+
+    def _open_cameras(self, seed: int) -> None:
+        from clonedrive.sim.cameras import CameraRig
+        from clonedrive.sim.scene import RandomizationConfig, Scene
+
+        randomization = RandomizationConfig() if self.config.randomize else None
+        self._scene = Scene(self.track, scenery=self.config.scenery,
+                            randomization=randomization, seed=seed)
+        self._rig = CameraRig(self._scene, cameras=self.config.cameras,
+                              width=self.config.image_width, height=self.config.image_height)
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, seed: int | None = None, options: dict | None = None
+              ) -> tuple[SimObservation, dict]:
+        """Place the car on the track. ``options``: ``s_m`` (start arc length in the driving
+        direction), ``offset_m`` (+ = right), ``speed_mph``, ``reverse`` (drive backwards),
+        ``yaw_offset_rad``."""
+        options = dict(options or {})
+        allowed = {"s_m", "offset_m", "speed_mph", "reverse", "yaw_offset_rad"}
+        unknown = set(options) - allowed
+        if unknown:
+            raise ValueError(
+                f"unknown reset option(s) {sorted(unknown)}; allowed {sorted(allowed)}")
+        if self.config.cameras and self._scene is None:
+            self._open_cameras(seed if seed is not None else 0)
+        self._reverse = bool(options.get("reverse", False))
+        self._direction = -1.0 if self._reverse else 1.0
+        start_s = float(options.get("s_m", 0.0))
+        self._place(start_s, float(options.get("offset_m", 0.0)),
+                    float(options.get("speed_mph", 0.0)), float(options.get("yaw_offset_rad", 0.0)))
+        self._time_s = 0.0
+        self._distance_m = 0.0
+        self._laps = 0
+        self._lap_index = 0
+        self._lap_clean = True
+        self._start_s = start_s
+        self._progress_m = 0.0  # signed distance covered along the driving direction
+        self._controls = Controls()
+        self.events = []
+        self._was_off_road = False
+        self._obs = self._observe()
+        self._was_off_road = self._obs.off_road
+        return self._obs, {"events": []}
+
+    def _track_s(self, s_m: float) -> float:
+        """Arc length on the track for arc length ``s_m`` measured in the driving direction."""
+        return float(self.track.wrap(self._direction * s_m))
+
+    def _place(self, s_m: float, offset_m: float, speed_mph: float, yaw_offset_rad: float) -> None:
+        track_s = self._track_s(s_m)
+        x, y, _ = self.track.offset_point(track_s, self._direction * offset_m)
+        yaw = float(self.track.heading_at(track_s)) + (math.pi if self._reverse else 0.0)
+        self._state = VehicleState(x_m=float(x), y_m=float(y),
+                                   yaw_rad=float(wrap_angle(yaw + yaw_offset_rad)),
+                                   v_x_mps=speed_mph * MPH_TO_MPS)
+
+    def intervene(self, speed_mph: float) -> SimObservation:
+        """An intervention: put the car back on the centreline where it is, heading along the
+        road, at ``speed_mph``; time, distance and lap progress carry on."""
+        s_dir = self._obs.s_m if self._obs is not None else 0.0
+        self._place(s_dir, 0.0, speed_mph, 0.0)
+        self._obs = self._observe()
+        self._was_off_road = self._obs.off_road
+        return self._obs
+
+    def step(self, controls: Controls) -> tuple[SimObservation, dict]:
+        """One control period: apply controls, integrate physics, measure, render."""
+        controls = controls.clipped()
+        road = self._road_contact()
+        state = self._state
+        for _ in range(self._substeps):
+            state = vehicle_step(state, controls, self._dt_s, self.params, road)
+        self._distance_m += math.hypot(state.x_m - self._state.x_m, state.y_m - self._state.y_m)
+        self._state = state
+        self._controls = controls
+        self._time_s += 1.0 / self.config.control_hz
+        previous_s = self._obs.s_m
+        obs = self._observe()
+        info = self._update_progress(previous_s, obs)
+        self._obs = obs = self._with_counters(obs)
+        return obs, info
+
+    # ------------------------------------------------------------------ measurement
+    def _road_contact(self) -> RoadContact:
+        obs = self._obs
+        grade = math.tan(obs.pitch_rad)
+        flags = obs.tyres_on_road
+        return RoadContact(grade=grade, front_on_road=0.5 * (flags[0] + flags[1]),
+                           rear_on_road=0.5 * (flags[2] + flags[3]))
+
+    def _observe(self) -> SimObservation:
+        state = self._state
+        points = np.array([(state.x_m, state.y_m), *tyre_positions(state, self.params)])
+        proj = self.track.project(points)
+        on_road = np.abs(proj.cte_m[1:]) <= proj.half_width_m[1:]
+        track_s = float(proj.s_m[0])
+        grade = float(self.track.grade(track_s))
+        road_heading = float(self.track.heading_at(track_s))
+        relative = state.yaw_rad - road_heading
+        pitch = math.atan(grade * math.cos(relative))
+        roll = math.atan(grade * math.sin(relative))  # right side lower when the road rises left
+        direction = self._direction
+        s_dir = float(self.track.wrap(direction * track_s))
+        curvature = float(self.track.curvature(track_s))
+        images = {}
+        z = float(proj.z_m[0])
+        if self._rig is not None:
+            images = self._rig.render(state.x_m, state.y_m, z, state.yaw_rad, pitch, roll)
+        heading_error = float(wrap_angle(relative + (math.pi if self._reverse else 0.0)))
+        return SimObservation(
+            time_s=getattr(self, "_time_s", 0.0),
+            images=images,
+            x_m=state.x_m,
+            y_m=state.y_m,
+            z_m=z,
+            yaw_rad=state.yaw_rad,
+            pitch_rad=pitch,
+            roll_rad=roll,
+            speed_mph=state.v_x_mps / MPH_TO_MPS,
+            steering=getattr(self, "_controls", Controls()).steering,
+            throttle=getattr(self, "_controls", Controls()).throttle,
+            brake=getattr(self, "_controls", Controls()).brake,
+            s_m=s_dir,
+            cte_m=direction * float(proj.cte_m[0]),
+            heading_error_rad=heading_error,
+            tyres_on_road=tuple(bool(v) for v in on_road),
+            off_road=not bool(on_road.all()),
+            laps=getattr(self, "_laps", 0),
+            distance_m=getattr(self, "_distance_m", 0.0),
+            off_road_events=len(self.events),
+            lap_progress=0.0,
+            curvature_per_m=direction * curvature,
+        )
+
+    def _update_progress(self, previous_s: float, obs: SimObservation) -> dict:
+        length = self.track.length_m
+        delta = (obs.s_m - previous_s + 0.5 * length) % length - 0.5 * length
+        self._progress_m += delta
+        info: dict = {"events": [], "lap_completed": False}
+        if obs.off_road and not self._was_off_road:
+            event = OffRoadEvent(time_s=obs.time_s, s_m=obs.s_m, x_m=obs.x_m, y_m=obs.y_m,
+                                 cte_m=obs.cte_m, lap=self._lap_index)
+            self.events.append(event)
+            info["events"].append(event)
+            self._lap_clean = False
+        self._was_off_road = obs.off_road
+        if self._progress_m >= (self._lap_index + 1) * length:
+            if self._lap_clean:
+                self._laps += 1
+                info["lap_completed"] = True
+            self._lap_index += 1
+            self._lap_clean = not obs.off_road
+        return info
+
+    def _with_counters(self, obs: SimObservation) -> SimObservation:
+        from dataclasses import replace
+
+        length = self.track.length_m
+        progress = self._progress_m / length - self._lap_index
+        return replace(obs, laps=self._laps, off_road_events=len(self.events),
+                       distance_m=self._distance_m, lap_progress=float(min(max(progress, 0), 1)))
+
+    @property
+    def observation(self) -> SimObservation:
+        if self._obs is None:
+            raise RuntimeError("call reset() first")
+        return self._obs
+
+    @property
+    def laps_started(self) -> int:
+        """Index of the lap being driven (laps attempted so far, counting completed ones)."""
+        return self._lap_index

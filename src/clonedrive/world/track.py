@@ -1,0 +1,391 @@
+"""Track geometry: a closed road along a periodic smoothing spline, with width and elevation.
+
+Pure NumPy/SciPy: no rendering imports. Units are metres and radians; x east, y north, z up.
+The driving direction is increasing arc length ``s``. Cross-track error (CTE) is positive to the
+right of the centreline in the driving direction.
+
+A track is loaded from a JSON file (format in DESIGN.md) into a :class:`TrackSpec`, validated, and
+turned into a :class:`Track` that answers geometric queries, vectorised over points.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import splev, splprep
+from scipy.spatial import cKDTree
+
+#: Wheelbase [m] and maximum wheel angle [deg] that every track must be drivable with.
+DRIVABLE_WHEELBASE_M = 2.7
+DRIVABLE_MAX_WHEEL_ANGLE_DEG = 25.0
+#: Smallest radius [m] a car with that wheelbase and wheel angle can follow at 10 mph
+#: (low-speed kinematic limit L / tan(delta_max)).
+MIN_DRIVABLE_RADIUS_M = DRIVABLE_WHEELBASE_M / math.tan(math.radians(DRIVABLE_MAX_WHEEL_ANGLE_DEG))
+
+TRACK_KEYS = ("name", "version", "theme", "width_m", "closed", "centerline")
+THEMES = ("lake", "mountain")
+_SAMPLE_STEP_M = 0.5
+
+
+class TrackError(ValueError):
+    """A track file or specification that cannot be used; the message says where."""
+
+
+@dataclass(frozen=True)
+class TrackSpec:
+    """What a track file holds. ``centerline`` rows are (x, y, z) or (x, y, z, width) [m]."""
+
+    name: str
+    version: int
+    theme: str
+    width_m: float
+    closed: bool
+    centerline: tuple[tuple[float, ...], ...]
+
+    @classmethod
+    def from_dict(cls, data: object, *, source: str = "track") -> TrackSpec:
+        if not isinstance(data, dict):
+            raise TrackError(f"{source}: expected a JSON object with keys {', '.join(TRACK_KEYS)}")
+        unknown = sorted(set(data) - set(TRACK_KEYS))
+        if unknown:
+            raise TrackError(
+                f"{source}: unknown key(s) {', '.join(map(repr, unknown))}; "
+                f"allowed: {', '.join(TRACK_KEYS)}"
+            )
+        missing = [key for key in ("name", "centerline") if key not in data]
+        if missing:
+            raise TrackError(f"{source}: missing key(s) {', '.join(missing)}")
+        theme = data.get("theme", "lake")
+        if theme not in THEMES:
+            raise TrackError(f"{source}: theme {theme!r} is not one of {', '.join(THEMES)}")
+        width = data.get("width_m", 8.0)
+        if not isinstance(width, (int, float)) or not 3.0 <= width <= 30.0:
+            raise TrackError(f"{source}: width_m must be a number in [3, 30] m, got {width!r}")
+        if data.get("closed", True) is not True:
+            raise TrackError(f"{source}: only closed tracks are supported (closed: true)")
+        points = data["centerline"]
+        if not isinstance(points, list):
+            raise TrackError(f"{source}: centerline must be a list of [x, y, z] points")
+        rows = []
+        for index, point in enumerate(points):
+            ok = isinstance(point, list) and len(point) in (3, 4)
+            ok = ok and all(isinstance(v, (int, float)) and math.isfinite(v) for v in point)
+            if not ok:
+                raise TrackError(
+                    f"{source}: centerline point {index} is {point!r}; expected [x, y, z] or "
+                    "[x, y, z, width_m] with finite numbers"
+                )
+            rows.append(tuple(float(v) for v in point))
+        if len({len(row) for row in rows}) > 1:
+            raise TrackError(f"{source}: centerline points mix 3 and 4 values; use one form")
+        return cls(
+            name=str(data["name"]),
+            version=int(data.get("version", 1)),
+            theme=theme,
+            width_m=float(width),
+            closed=True,
+            centerline=tuple(rows),
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "version": self.version,
+            "theme": self.theme,
+            "width_m": self.width_m,
+            "closed": self.closed,
+            "centerline": [[round(v, 3) for v in row] for row in self.centerline],
+        }
+
+
+@dataclass(frozen=True)
+class Projection:
+    """Where points lie relative to the track (arrays, one entry per point)."""
+
+    s_m: np.ndarray  #: arc length of the nearest centreline point [m], in [0, length)
+    cte_m: np.ndarray  #: signed lateral distance, + = right of centre [m]
+    half_width_m: np.ndarray  #: half the road width there [m]
+    z_m: np.ndarray  #: road surface height there [m]
+
+
+class Track:
+    """A validated closed track sampled every 0.5 m along its spline centreline."""
+
+    def __init__(self, spec: TrackSpec, *, source: str | None = None):
+        self.spec = spec
+        self.name = spec.name
+        self.version = spec.version
+        self.theme = spec.theme
+        where = source or spec.name
+        control = np.asarray(spec.centerline, dtype=float)
+        if len(control) < 8:
+            raise TrackError(
+                f"{where}: centerline has {len(control)} points; at least 8 are needed"
+            )
+        if np.allclose(control[0, :2], control[-1, :2]):
+            control = control[:-1]  # closing point repeated: the spline is periodic anyway
+        widths = control[:, 3] if control.shape[1] == 4 else np.full(len(control), spec.width_m)
+        bad_width = np.flatnonzero((widths < 3.0) | (widths > 30.0))
+        if bad_width.size:
+            raise TrackError(
+                f"{where}: centerline point {bad_width[0]} has width {widths[bad_width[0]]:.2f} m; "
+                "widths must be in [3, 30] m"
+            )
+        steps = np.linalg.norm(np.diff(np.vstack([control, control[:1]])[:, :2], axis=0), axis=1)
+        duplicate = np.flatnonzero(steps < 1e-6)
+        if duplicate.size:
+            raise TrackError(f"{where}: centerline points {duplicate[0]} and the next coincide")
+        self._build(control[:, :3], widths)
+        self._validate(where)
+
+    # ------------------------------------------------------------------ construction
+    def _build(self, control: np.ndarray, widths: np.ndarray) -> None:
+        closed = np.vstack([control, control[:1]])
+        closed_w = np.append(widths, widths[0])
+        tck, _ = splprep(
+            [closed[:, 0], closed[:, 1], closed[:, 2], closed_w], s=0.0, per=1, k=3, quiet=2
+        )
+        # Arc length by dense sampling of the spline parameter.
+        u_fine = np.linspace(0.0, 1.0, max(4000, 40 * len(control)), endpoint=False)
+        fine = np.array(splev(u_fine, tck)).T
+        seg = np.linalg.norm(np.diff(np.vstack([fine, fine[:1]])[:, :2], axis=0), axis=1)
+        s_fine = np.concatenate([[0.0], np.cumsum(seg)])
+        self.length_m = float(s_fine[-1])
+        count = int(round(self.length_m / _SAMPLE_STEP_M))
+        self.ds_m = self.length_m / count
+        self.s = np.arange(count) * self.ds_m
+        u = np.interp(self.s, s_fine, np.append(u_fine, 1.0))
+        x, y, z, w = splev(u, tck)
+        dx, dy, dz, _ = splev(u, tck, der=1)
+        ddx, ddy, _, _ = splev(u, tck, der=2)
+        speed_xy = np.hypot(dx, dy)
+        self.xyz = np.column_stack([x, y, z])
+        self.width = np.asarray(w)
+        self.tangent = np.column_stack([dx, dy]) / speed_xy[:, None]
+        self.heading = np.arctan2(self.tangent[:, 1], self.tangent[:, 0])
+        self.right_normal = np.column_stack([self.tangent[:, 1], -self.tangent[:, 0]])
+        #: signed curvature [1/m], + = turning left
+        self.curvature_table = (dx * ddy - dy * ddx) / speed_xy**3
+        #: grade dz/ds along the driving direction
+        self.grade_table = np.asarray(dz) / speed_xy
+        self._tree = cKDTree(self.xyz[:, :2])
+
+    def _validate(self, where: str) -> None:
+        radius = 1.0 / np.maximum(np.abs(self.curvature_table), 1e-9)
+        tight = np.flatnonzero(radius < MIN_DRIVABLE_RADIUS_M)
+        if tight.size:
+            i = tight[np.argmin(radius[tight])]
+            raise TrackError(
+                f"{where}: curve of radius {radius[i]:.1f} m at s={self.s[i]:.0f} m "
+                f"(x={self.xyz[i, 0]:.1f}, y={self.xyz[i, 1]:.1f}) is undrivable at 10 mph with a "
+                f"{DRIVABLE_MAX_WHEEL_ANGLE_DEG:.0f} deg wheel angle (minimum "
+                f"{MIN_DRIVABLE_RADIUS_M:.1f} m)"
+            )
+        inner = np.flatnonzero(radius < 0.5 * self.width + 1.0)
+        if inner.size:
+            i = inner[0]
+            raise TrackError(
+                f"{where}: curve of radius {radius[i]:.1f} m at s={self.s[i]:.0f} m is tighter "
+                "than "
+                f"half the road width ({0.5 * self.width[i]:.1f} m): the road folds over itself"
+            )
+        # The road overlaps itself where two parts far apart along s come closer than their
+        # half-widths plus a 1 m verge. A bend of radius R keeps chord >= 2*ds/pi for arcs up to
+        # a half circle, so pairs closer along s than pi/2 * gap are neighbours, not overlaps.
+        gap = float(self.width.max()) + 1.0
+        pairs = self._tree.query_pairs(r=gap, output_type="ndarray")
+        if len(pairs):
+            i, j = pairs[:, 0], pairs[:, 1]
+            along = np.abs(self.s[i] - self.s[j])
+            along = np.minimum(along, self.length_m - along)
+            dist = np.linalg.norm(self.xyz[i, :2] - self.xyz[j, :2], axis=1)
+            limit = 0.5 * (self.width[i] + self.width[j]) + 1.0
+            bad = (dist < limit) & (along > 0.5 * math.pi * gap * 1.2)
+            if bad.any():
+                k = np.flatnonzero(bad)[0]
+                a, b = sorted((self.s[i[k]], self.s[j[k]]))
+                raise TrackError(
+                    f"{where}: the road intersects or overlaps itself between s={a:.0f} m and "
+                    f"s={b:.0f} m (near x={self.xyz[i[k], 0]:.1f}, y={self.xyz[i[k], 1]:.1f})"
+                )
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_file(cls, path: str | Path) -> Track:
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise TrackError(f"{path}: no such track file") from None
+        except json.JSONDecodeError as error:
+            raise TrackError(f"{path}: not valid JSON ({error})") from None
+        return cls(TrackSpec.from_dict(data, source=str(path)), source=str(path))
+
+    # ------------------------------------------------------------------ arc-length queries
+    def wrap(self, s_m: np.ndarray | float) -> np.ndarray:
+        return np.mod(s_m, self.length_m)
+
+    def _interp(self, table: np.ndarray, s_m: np.ndarray | float) -> np.ndarray:
+        s = self.wrap(np.asarray(s_m, dtype=float))
+        f = s / self.ds_m
+        i0 = np.floor(f).astype(int) % len(self.s)
+        i1 = (i0 + 1) % len(self.s)
+        t = f - np.floor(f)
+        if table.ndim == 2:
+            t = t[..., None]
+        return table[i0] * (1.0 - t) + table[i1] * t
+
+    def point(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Centreline point(s) (x, y, z) [m] at arc length ``s_m``."""
+        return self._interp(self.xyz, s_m)
+
+    def heading_at(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Direction of travel [rad, from +x, counter-clockwise] at ``s_m``."""
+        t = self._interp(self.tangent, s_m)
+        return np.arctan2(t[..., 1], t[..., 0])
+
+    def curvature(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Signed curvature [1/m] at ``s_m``; + = the road turns left."""
+        return self._interp(self.curvature_table, s_m)
+
+    def grade(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Slope dz/ds along the driving direction at ``s_m`` (0.1 = 10 % uphill)."""
+        return self._interp(self.grade_table, s_m)
+
+    def width_at(self, s_m: np.ndarray | float) -> np.ndarray:
+        """Road width [m] at ``s_m``."""
+        return self._interp(self.width, s_m)
+
+    def offset_point(self, s_m: np.ndarray | float, offset_m: np.ndarray | float) -> np.ndarray:
+        """Point(s) (x, y, z) at arc length ``s_m`` and lateral offset ``offset_m`` (+ = right)."""
+        p = self.point(s_m)
+        n = self._interp(self.right_normal, s_m)
+        out = np.array(p, dtype=float, copy=True)
+        out[..., :2] += n * np.asarray(offset_m, dtype=float)[..., None]
+        return out
+
+    # ------------------------------------------------------------------ point queries
+    def project(self, points_xy: np.ndarray) -> Projection:
+        """Project world points (..., 2) onto the centreline (nearest sample, refined on the
+        two segments beside it)."""
+        pts = np.asarray(points_xy, dtype=float)
+        shape = pts.shape[:-1]
+        flat = pts.reshape(-1, 2)
+        _, nearest = self._tree.query(flat)
+        n = len(self.s)
+        best_s = np.empty(len(flat))
+        best_d2 = np.full(len(flat), np.inf)
+        for i0 in (nearest - 1, nearest):  # the two segments around the nearest sample
+            i0 = i0 % n
+            i1 = (i0 + 1) % n
+            a = self.xyz[i0, :2]
+            ab = self.xyz[i1, :2] - a
+            t = np.clip(np.einsum("ij,ij->i", flat - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+            foot = a + ab * t[:, None]
+            d2 = np.einsum("ij,ij->i", flat - foot, flat - foot)
+            better = d2 < best_d2
+            best_d2 = np.where(better, d2, best_d2)
+            best_s = np.where(better, self.s[i0] + t * self.ds_m, best_s)
+        best_s = self.wrap(best_s)
+        centre = self.point(best_s)
+        normal = self._interp(self.right_normal, best_s)
+        cte = np.einsum("ij,ij->i", flat - centre[:, :2], normal)
+        return Projection(
+            s_m=best_s.reshape(shape),
+            cte_m=cte.reshape(shape),
+            half_width_m=(0.5 * self.width_at(best_s)).reshape(shape),
+            z_m=centre[:, 2].reshape(shape),
+        )
+
+    def on_road(self, points_xy: np.ndarray) -> np.ndarray:
+        """True where a point (e.g. a tyre contact point) lies on the drivable road surface."""
+        proj = self.project(points_xy)
+        return np.abs(proj.cte_m) <= proj.half_width_m
+
+    def surface(self, points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Road surface height [m] and unit normal (x, y, z) at world points (..., 2).
+
+        The road has no banking: the surface is level across the road and follows the
+        centreline's grade along it; off the road the ground continues at the same height.
+        """
+        proj = self.project(points_xy)
+        grade = self.grade(proj.s_m)
+        tangent = self._interp(self.tangent, proj.s_m)
+        normal = np.concatenate([-grade[..., None] * tangent, np.ones_like(grade)[..., None]], -1)
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        return proj.z_m, normal
+
+    def heading_error(self, s_m: np.ndarray | float, yaw_rad: np.ndarray | float) -> np.ndarray:
+        """Car yaw minus road heading at ``s_m``, wrapped to [-pi, pi) [rad]."""
+        return wrap_angle(np.asarray(yaw_rad) - self.heading_at(s_m))
+
+    def start_pose(self, *, reverse: bool = False) -> tuple[float, float, float, float]:
+        """(x, y, z, yaw) at s = 0, heading along the driving direction (or against it)."""
+        x, y, z = self.xyz[0]
+        yaw = float(self.heading[0]) + (math.pi if reverse else 0.0)
+        return float(x), float(y), float(z), float(wrap_angle(yaw))
+
+    # ------------------------------------------------------------------ summary figures
+    @property
+    def min_radius_m(self) -> float:
+        return float(1.0 / np.abs(self.curvature_table).max())
+
+    @property
+    def elevation_range_m(self) -> float:
+        return float(self.xyz[:, 2].max() - self.xyz[:, 2].min())
+
+    @property
+    def max_grade(self) -> float:
+        return float(np.abs(self.grade_table).max())
+
+    def summary(self) -> dict:
+        """The figures ``clonedrive tracks --json`` reports."""
+        return {
+            "name": self.name,
+            "version": self.version,
+            "theme": self.theme,
+            "length_m": round(self.length_m, 1),
+            "width_m": round(float(self.width.mean()), 2),
+            "elevation_range_m": round(self.elevation_range_m, 1),
+            "min_radius_m": round(self.min_radius_m, 1),
+            "max_grade": round(self.max_grade, 4),
+        }
+
+
+def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray:
+    """Wrap angle(s) to [-pi, pi)."""
+    return np.mod(np.asarray(angle_rad) + math.pi, 2.0 * math.pi) - math.pi
+
+
+def builtin_track_names() -> list[str]:
+    folder = resources.files("clonedrive.world") / "tracks"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json"))
+
+
+def load_track(name_or_path: str | Path) -> Track:
+    """A track by built-in name (``lake``), generated name (``gen:17``) or JSON file path."""
+    name = str(name_or_path)
+    if name.startswith("gen:"):
+        from clonedrive.world.generate import generate
+
+        try:
+            seed = int(name[4:])
+        except ValueError:
+            raise TrackError(f"{name!r}: generated tracks are named gen:<integer seed>") from None
+        return generate(seed)
+    if name in builtin_track_names():
+        folder = resources.files("clonedrive.world") / "tracks"
+        with resources.as_file(folder / f"{name}.json") as path:
+            return Track.from_file(path)
+    path = Path(name)
+    if path.suffix == ".json" or path.exists():
+        return Track.from_file(path)
+    raise TrackError(
+        f"unknown track {name!r}: use one of {', '.join(builtin_track_names())}, gen:<seed>, "
+        "or a path to a track .json file"
+    )

@@ -1,0 +1,185 @@
+"""Keras 3 steering networks: ``seed`` (the write-up's), ``pilotnet`` (NVIDIA 2016), ``fast``.
+
+Every model takes one 160x320 RGB camera frame with uint8 values (as float32 or uint8) and
+returns one steering value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``.
+All preprocessing -- crop, resize, colour conversion, normalisation -- is done by built-in
+layers inside the model, so whoever feeds the model a 160x320 RGB frame (the trainer, the
+drive server, the evaluator) gets the same answer, and every model loads with
+``keras.saving.load_model(path, safe_mode=True)`` (no ``Lambda`` layers).
+
+Weight initialisers get explicit seeds derived from ``seed``, so building a model twice with
+the same seed gives identical weights without touching any global random state.
+"""
+
+from __future__ import annotations
+
+import keras
+import numpy as np
+from keras import layers
+
+IMAGE_HEIGHT = 160
+IMAGE_WIDTH = 320
+IMAGE_SHAPE = (IMAGE_HEIGHT, IMAGE_WIDTH, 3)
+#: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels.
+CROP_TOP_PX = 80
+CROP_BOTTOM_PX = 25
+
+MODEL_NAMES = ("seed", "pilotnet", "fast")
+
+# BT.601 RGB -> YUV for RGB in [0, 1]; rows are output channels Y, U, V.
+_RGB_TO_YUV = np.array(
+    [
+        [0.299, 0.587, 0.114],
+        [-0.14713, -0.28886, 0.436],
+        [0.615, -0.51499, -0.10001],
+    ],
+    dtype=np.float64,
+)
+_UV_MAX = (0.436, 0.615)
+
+
+class _Seeds:
+    """Hands out one distinct initialiser seed per layer."""
+
+    def __init__(self, seed: int):
+        self._next = int(seed) * 1000
+
+    def glorot(self) -> keras.initializers.Initializer:
+        self._next += 1
+        return keras.initializers.GlorotUniform(seed=self._next)
+
+    def next_int(self) -> int:
+        self._next += 1
+        return self._next
+
+
+def _crop(inputs):
+    return layers.Cropping2D(cropping=((CROP_TOP_PX, CROP_BOTTOM_PX), (0, 0)), name="crop")(inputs)
+
+
+def build_seed(*, seed: int = 0, dropout: float = 0.0, l2: float = 1e-3) -> keras.Model:
+    """The write-up's network, exactly.
+
+    Input 160x320x3 -> Cropping2D(((80, 25), (0, 0))) -> Rescaling(1/127.5, offset=-1) ->
+    Conv2D 36 5x5/2, 48 5x5/2, 64 3x3, 64 3x3 (ReLU, L2 ``l2``) -> Flatten ->
+    Dense 100, 50 (ReLU, L2 ``l2``) -> Dense 10 (ReLU) -> Dense 1.
+    ``dropout`` > 0 inserts Dropout after Flatten and after Dense 100 and 50 (off by default).
+    """
+    seeds = _Seeds(seed)
+    reg = keras.regularizers.L2(l2)
+    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    x = _crop(inputs)
+    x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
+    for index, (filters, size, stride) in enumerate(
+        [(36, 5, 2), (48, 5, 2), (64, 3, 1), (64, 3, 1)], start=1
+    ):
+        x = layers.Conv2D(
+            filters, size, strides=stride, activation="relu", kernel_regularizer=reg,
+            kernel_initializer=seeds.glorot(), name=f"conv{index}",
+        )(x)
+    x = layers.Flatten(name="flatten")(x)
+    if dropout > 0:
+        x = layers.Dropout(dropout, seed=seeds.next_int(), name="dropout0")(x)
+    for index, units in enumerate([100, 50], start=1):
+        x = layers.Dense(
+            units, activation="relu", kernel_regularizer=reg,
+            kernel_initializer=seeds.glorot(), name=f"dense{index}",
+        )(x)
+        if dropout > 0:
+            x = layers.Dropout(dropout, seed=seeds.next_int(), name=f"dropout{index}")(x)
+    x = layers.Dense(10, activation="relu", kernel_initializer=seeds.glorot(), name="dense3")(x)
+    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
+    return keras.Model(inputs, outputs, name="seed")
+
+
+def _rgb_to_yuv_layer() -> layers.Conv2D:
+    """A frozen 1x1 convolution mapping RGB in [0, 1] to YUV scaled to about [-1, 1]."""
+    return layers.Conv2D(3, 1, use_bias=True, trainable=False, name="rgb_to_yuv")
+
+
+def _rgb_to_yuv_weights() -> list[np.ndarray]:
+    # y' = 2 * Y - 1, u' = U / 0.436, v' = V / 0.615 so each channel spans [-1, 1].
+    scale = np.array([2.0, 1.0 / _UV_MAX[0], 1.0 / _UV_MAX[1]])
+    matrix = _RGB_TO_YUV * scale[:, None]  # (out, in)
+    kernel = matrix.T.reshape(1, 1, 3, 3).astype(np.float32)  # (h, w, in, out)
+    bias = np.array([-1.0, 0.0, 0.0], dtype=np.float32)
+    return [kernel, bias]
+
+
+def build_pilotnet(*, seed: int = 0, dropout: float = 0.0) -> keras.Model:
+    """NVIDIA's PilotNet (Bojarski et al. 2016) fed like the paper: 66x200 YUV.
+
+    Input 160x320x3 RGB -> crop (80, 25) -> Resizing(66, 200) -> Rescaling(1/255) ->
+    frozen 1x1 Conv2D RGB->YUV (each channel scaled to [-1, 1]) -> Conv2D 24, 36, 48
+    (5x5/2) and 64, 64 (3x3) -> Flatten -> Dense 100, 50, 10 -> Dense 1; ReLU.
+    """
+    seeds = _Seeds(seed)
+    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    x = _crop(inputs)
+    x = layers.Resizing(66, 200, interpolation="bilinear", name="resize")(x)
+    x = layers.Rescaling(1.0 / 255.0, name="unit_range")(x)
+    yuv = _rgb_to_yuv_layer()
+    x = yuv(x)
+    yuv.set_weights(_rgb_to_yuv_weights())
+    for index, (filters, size, stride) in enumerate(
+        [(24, 5, 2), (36, 5, 2), (48, 5, 2), (64, 3, 1), (64, 3, 1)], start=1
+    ):
+        x = layers.Conv2D(
+            filters, size, strides=stride, activation="relu",
+            kernel_initializer=seeds.glorot(), name=f"conv{index}",
+        )(x)
+    x = layers.Flatten(name="flatten")(x)
+    for index, units in enumerate([100, 50, 10], start=1):
+        x = layers.Dense(
+            units, activation="relu", kernel_initializer=seeds.glorot(), name=f"dense{index}"
+        )(x)
+        if dropout > 0 and index < 3:
+            x = layers.Dropout(dropout, seed=seeds.next_int(), name=f"dropout{index}")(x)
+    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
+    return keras.Model(inputs, outputs, name="pilotnet")
+
+
+def build_fast(*, seed: int = 0, dropout: float = 0.0) -> keras.Model:
+    """A small network (about 89k parameters) that trains in minutes on 2 CPU cores.
+
+    Input 160x320x3 -> crop (80, 25) -> 55x320 -> AveragePooling2D (2, 2) -> 27x160 ->
+    Rescaling to [-1, 1] -> Conv2D 16 5x5 stride (2, 2) -> 12x78 -> Conv2D 32 3x3 stride
+    (1, 2) -> 10x38 -> Conv2D 32 3x3 stride (2, 2) -> 4x18 -> Flatten -> Dense 32 -> Dense 1;
+    ReLU.
+    """
+    seeds = _Seeds(seed)
+    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    x = _crop(inputs)
+    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
+    x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
+    for index, (filters, size, stride) in enumerate(
+        [(16, 5, (2, 2)), (32, 3, (1, 2)), (32, 3, (2, 2))], start=1
+    ):
+        x = layers.Conv2D(
+            filters, size, strides=stride, activation="relu",
+            kernel_initializer=seeds.glorot(), name=f"conv{index}",
+        )(x)
+    x = layers.Flatten(name="flatten")(x)
+    if dropout > 0:
+        x = layers.Dropout(dropout, seed=seeds.next_int(), name="dropout0")(x)
+    x = layers.Dense(32, activation="relu", kernel_initializer=seeds.glorot(), name="dense1")(x)
+    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
+    return keras.Model(inputs, outputs, name="fast")
+
+
+_BUILDERS = {"seed": build_seed, "pilotnet": build_pilotnet, "fast": build_fast}
+
+
+def build_model(name: str, **options) -> keras.Model:
+    """Build the named architecture (``seed``, ``pilotnet`` or ``fast``).
+
+    ``options`` are passed to the builder: ``seed`` (int, initialiser seed), ``dropout``
+    (float, 0 = off) and, for ``seed`` only, ``l2``.
+    """
+    try:
+        builder = _BUILDERS[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown model {name!r}; expected one of: {', '.join(MODEL_NAMES)}"
+        ) from None
+    return builder(**options)

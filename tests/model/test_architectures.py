@@ -1,0 +1,160 @@
+"""The three steering networks: layer sequences, sizes, preprocessing inside, safe save/load."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import keras
+import numpy as np
+import pytest
+
+from clonedrive.model.architectures import MODEL_NAMES, build_model
+
+FRAMES = np.random.default_rng(5).integers(0, 256, size=(3, 160, 320, 3)).astype(np.uint8)
+
+# (layer name, class name, output shape without batch) in model order.
+SEED_LAYERS = [
+    ("image_rgb", "InputLayer", (160, 320, 3)),
+    ("crop", "Cropping2D", (55, 320, 3)),
+    ("normalise", "Rescaling", (55, 320, 3)),
+    ("conv1", "Conv2D", (26, 158, 36)),
+    ("conv2", "Conv2D", (11, 77, 48)),
+    ("conv3", "Conv2D", (9, 75, 64)),
+    ("conv4", "Conv2D", (7, 73, 64)),
+    ("flatten", "Flatten", (32704,)),
+    ("dense1", "Dense", (100,)),
+    ("dense2", "Dense", (50,)),
+    ("dense3", "Dense", (10,)),
+    ("steering", "Dense", (1,)),
+]
+PILOTNET_LAYERS = [
+    ("image_rgb", "InputLayer", (160, 320, 3)),
+    ("crop", "Cropping2D", (55, 320, 3)),
+    ("resize", "Resizing", (66, 200, 3)),
+    ("unit_range", "Rescaling", (66, 200, 3)),
+    ("rgb_to_yuv", "Conv2D", (66, 200, 3)),
+    ("conv1", "Conv2D", (31, 98, 24)),
+    ("conv2", "Conv2D", (14, 47, 36)),
+    ("conv3", "Conv2D", (5, 22, 48)),
+    ("conv4", "Conv2D", (3, 20, 64)),
+    ("conv5", "Conv2D", (1, 18, 64)),
+    ("flatten", "Flatten", (1152,)),
+    ("dense1", "Dense", (100,)),
+    ("dense2", "Dense", (50,)),
+    ("dense3", "Dense", (10,)),
+    ("steering", "Dense", (1,)),
+]
+
+
+def _conv(k: int, c_in: int, c_out: int) -> int:
+    return k * k * c_in * c_out + c_out
+
+
+def _dense(n_in: int, n_out: int) -> int:
+    return n_in * n_out + n_out
+
+
+SEED_PARAMS = (
+    _conv(5, 3, 36) + _conv(5, 36, 48) + _conv(3, 48, 64) + _conv(3, 64, 64)
+    + _dense(32704, 100) + _dense(100, 50) + _dense(50, 10) + _dense(10, 1)
+)
+PILOTNET_PARAMS = (
+    _conv(1, 3, 3)  # the frozen RGB->YUV layer
+    + _conv(5, 3, 24) + _conv(5, 24, 36) + _conv(5, 36, 48) + _conv(3, 48, 64) + _conv(3, 64, 64)
+    + _dense(1152, 100) + _dense(100, 50) + _dense(50, 10) + _dense(10, 1)
+)
+
+
+def _layers(model: keras.Model) -> list[tuple[str, str, tuple]]:
+    return [
+        (layer.name, type(layer).__name__, tuple(layer.output.shape[1:])) for layer in model.layers
+    ]
+
+
+def test_seed_is_exactly_the_writeups_network() -> None:
+    model = build_model("seed")
+    assert _layers(model) == SEED_LAYERS
+    assert model.count_params() == SEED_PARAMS == 3_386_695
+    crop = model.get_layer("crop")
+    assert crop.cropping == ((80, 25), (0, 0))
+    normalise = model.get_layer("normalise")
+    assert normalise.scale == pytest.approx(1 / 127.5) and normalise.offset == -1.0
+    strides = {name: model.get_layer(name).strides for name in ("conv1", "conv2", "conv3", "conv4")}
+    assert strides == {"conv1": (2, 2), "conv2": (2, 2), "conv3": (1, 1), "conv4": (1, 1)}
+    regularised = {
+        layer.name
+        for layer in model.layers
+        if getattr(layer, "kernel_regularizer", None) is not None
+    }
+    assert regularised == {"conv1", "conv2", "conv3", "conv4", "dense1", "dense2"}
+    assert model.get_layer("conv1").kernel_regularizer.l2 == pytest.approx(1e-3)
+    activations = [
+        layer.activation.__name__ for layer in model.layers if hasattr(layer, "activation")
+    ]
+    assert activations == ["relu"] * 7 + ["linear"]
+    assert not any(type(layer).__name__ == "Dropout" for layer in model.layers)
+
+
+def test_seed_dropout_is_optional() -> None:
+    model = build_model("seed", dropout=0.3)
+    dropouts = [layer for layer in model.layers if type(layer).__name__ == "Dropout"]
+    assert len(dropouts) == 3 and all(layer.rate == 0.3 for layer in dropouts)
+    assert model.count_params() == SEED_PARAMS
+
+
+def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
+    model = build_model("pilotnet")
+    assert _layers(model) == PILOTNET_LAYERS
+    assert model.count_params() == PILOTNET_PARAMS
+    yuv = model.get_layer("rgb_to_yuv")
+    assert not yuv.trainable
+    assert model.count_params() - sum(int(np.prod(w.shape)) for w in model.trainable_weights) == 12
+    # White -> Y' = 1, U' = V' = 0; black -> Y' = -1; pure red -> V' = +1 (0.615 / 0.615).
+    probe = keras.Model(model.input, yuv.output)
+    frames = np.zeros((3, 160, 320, 3), dtype=np.float32)
+    frames[0] = 255.0
+    frames[2, ..., 0] = 255.0
+    out = np.asarray(probe.predict(frames, verbose=0))[:, 30, 100]
+    np.testing.assert_allclose(out[0], [1.0, 0.0, 0.0], atol=1e-4)
+    np.testing.assert_allclose(out[1], [-1.0, 0.0, 0.0], atol=1e-4)
+    np.testing.assert_allclose(out[2, 2], 1.0, atol=1e-4)
+
+
+def test_fast_is_small() -> None:
+    model = build_model("fast")
+    assert model.count_params() < 100_000
+    assert [type(layer).__name__ for layer in model.layers[:4]] == [
+        "InputLayer", "Cropping2D", "AveragePooling2D", "Rescaling"
+    ]
+
+
+def test_unknown_model_name_is_an_error() -> None:
+    with pytest.raises(ValueError, match="unknown model 'resnet'.*seed, pilotnet, fast"):
+        build_model("resnet")
+
+
+@pytest.mark.parametrize("name", MODEL_NAMES)
+def test_save_load_safe_mode_and_h5_give_identical_predictions(name: str, tmp_path: Path) -> None:
+    model = build_model(name, seed=3)
+    assert not any(type(layer).__name__ == "Lambda" for layer in model.layers)
+    expected = np.asarray(model.predict(FRAMES, verbose=0))
+    assert expected.shape == (3, 1)
+    # uint8 frames and their float32 copies give the same answer (the model casts).
+    np.testing.assert_array_equal(
+        np.asarray(model.predict(FRAMES.astype(np.float32), verbose=0)), expected
+    )
+    model.save(tmp_path / "m.keras")
+    loaded = keras.saving.load_model(tmp_path / "m.keras", safe_mode=True)
+    np.testing.assert_array_equal(np.asarray(loaded.predict(FRAMES, verbose=0)), expected)
+    model.save(tmp_path / "m.h5")
+    from_h5 = keras.saving.load_model(tmp_path / "m.h5", safe_mode=True, compile=False)
+    np.testing.assert_allclose(np.asarray(from_h5.predict(FRAMES, verbose=0)), expected,
+                               rtol=0, atol=1e-6)
+
+
+def test_same_seed_same_weights_without_global_seeding() -> None:
+    first = build_model("fast", seed=11).get_weights()
+    second = build_model("fast", seed=11).get_weights()
+    other = build_model("fast", seed=12).get_weights()
+    assert all(np.array_equal(a, b) for a, b in zip(first, second, strict=True))
+    assert not np.array_equal(first[0], other[0])

@@ -1,0 +1,126 @@
+"""``clonedrive train``: train a steering network on recordings."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HELP = "train a Keras steering network on recordings (a recipe file or folders)"
+DESCRIPTION = (
+    "Train a network that predicts steering from one 160x320 RGB camera frame. Data comes from "
+    "a recipe file (--recipe recipe.toml: recordings with per-recording cameras, steering "
+    "offset, flips, weight) or from recording folders DIR ... (center + side cameras with "
+    "--correction, mirrored copies). Steering is balanced (the write-up's 20-bin method), split "
+    "into training and validation sets (--split random|blocks|recording), augmented for "
+    "training, and fitted with Adam on MSE. The --out folder receives model.keras (best "
+    "validation loss), last.keras (every epoch), model.h5, history.csv, loss.png, config.json, "
+    "recipe.toml, dataset.json and steering_before/after.png. An interrupted run continues "
+    "with --resume --out FOLDER."
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from clonedrive.model.train import TrainConfig
+
+    d = TrainConfig()
+    given = argparse.SUPPRESS  # an option not given leaves no attribute (see _overrides)
+    parser.add_argument("dirs", nargs="*", metavar="DIR",
+                        help="recording folders (driving_log.csv + IMG/), default recipe each")
+    parser.add_argument("--recipe", type=Path, help="recipe TOML file (instead of DIRs)")
+    parser.add_argument("--out", type=Path, required=True, help="run folder to write")
+    parser.add_argument("--model", default=given, choices=("seed", "pilotnet", "fast"),
+                        help=f"architecture (default {d.model})")
+    parser.add_argument("--epochs", type=int, default=given,
+                        help=f"total epochs (default {d.epochs})")
+    parser.add_argument("--lr", dest="learning_rate", type=float, default=given,
+                        help=f"Adam learning rate (default {d.learning_rate:g})")
+    parser.add_argument("--batch-size", type=int, default=given,
+                        help=f"batch size (default {d.batch_size})")
+    parser.add_argument("--split", default=given, choices=("random", "blocks", "recording"),
+                        help=f"train/validation split (default {d.split})")
+    parser.add_argument("--val-fraction", type=float, default=given,
+                        help=f"share of rows for validation (default {d.val_fraction})")
+    parser.add_argument("--block-s", type=float, default=given,
+                        help=f"block length of --split blocks, seconds (default {d.block_s:g})")
+    parser.add_argument("--correction", type=float, default=given,
+                        help=f"side-camera steering correction for DIRs (default {d.correction})")
+    parser.add_argument("--no-balance", dest="balance", action="store_false", default=given,
+                        help="keep every sample (no steering histogram balancing)")
+    parser.add_argument("--no-augment", dest="augment", action="store_false", default=given,
+                        help="no training augmentation")
+    parser.add_argument("--early-stopping", dest="early_stopping_patience", type=int,
+                        default=given, metavar="PATIENCE",
+                        help="stop after PATIENCE epochs without a better validation loss")
+    parser.add_argument("--dropout", type=float, default=given,
+                        help=f"dropout rate, 0 = off (default {d.dropout})")
+    parser.add_argument("--seed", type=int, default=given, help=f"random seed (default {d.seed})")
+    parser.add_argument("--workers", type=int, default=given,
+                        help=f"batch-preparing threads (default {d.workers})")
+    parser.add_argument("--cache", default=given, choices=("auto", "memory", "memmap"),
+                        help=f"where decoded images live (default {d.cache})")
+    parser.add_argument("--no-h5", dest="export_h5", action="store_false", default=given,
+                        help="do not write model.h5")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the run in --out from its last.keras (its recipe.toml "
+                             "and config.json; only --epochs/--early-stopping/--workers change)")
+    parser.add_argument("--json", action="store_true",
+                        help="no progress output; print one JSON object at the end")
+
+
+_CONFIG_OPTIONS = (
+    "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
+    "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
+    "cache", "export_h5",
+)
+
+
+def _overrides(args: argparse.Namespace) -> dict:
+    return {name: getattr(args, name) for name in _CONFIG_OPTIONS if hasattr(args, name)}
+
+
+def run(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from clonedrive.model.train import TrainConfig, load_run_config, train
+
+    out: Path = args.out
+    try:
+        if args.resume and (out / "config.json").is_file():
+            base = load_run_config(out)
+            source = args.recipe or (args.dirs or None) or out / "recipe.toml"
+        else:
+            base = TrainConfig()
+            if args.recipe and args.dirs:
+                raise ValueError("give either --recipe or DIRs, not both")
+            source = args.recipe or args.dirs
+            if not source:
+                raise ValueError("nothing to train on: give --recipe FILE or DIR [DIR ...]")
+        config = dataclasses.replace(base, **_overrides(args))
+        result = train(config, source, out, resume=args.resume, progress=not args.json)
+    except (ValueError, FileNotFoundError, FileExistsError) as error:
+        print(f"clonedrive train: {error}", file=sys.stderr)
+        return 1
+
+    summary = {
+        "out_dir": str(result.out_dir),
+        "model": str(result.model_path),
+        "epochs_done": result.epochs_done,
+        "best_epoch": result.best_epoch,
+        "best_val_loss": result.best_val_loss,
+        "stopped_early": result.stopped_early,
+        "split": result.dataset["split"]["kind"],
+        "train_samples": result.dataset["train_samples"],
+        "val_samples": result.dataset["val_samples"],
+        "skipped_rows": result.dataset["skipped_rows"],
+        "skipped_images": result.dataset["skipped_images"],
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(
+            f"best epoch {result.best_epoch} of {result.epochs_done}: val_loss "
+            f"{result.best_val_loss:.5f} ({summary['split']} split) -> {result.model_path}"
+        )
+    return 0

@@ -1,0 +1,228 @@
+"""Training batches: a decoded-image cache and a ``keras.utils.PyDataset`` over samples.
+
+Images are RGB end to end. JPEGs are decoded with OpenCV (which returns BGR) and converted
+to RGB at once, exactly as the drive server turns a received JPEG into the network's input,
+so the network sees identical pixels in training and in driving.
+
+Each distinct image file is decoded once into a uint8 array (in memory, or an ``np.memmap``
+file when it would be large); every later epoch reads the cache and decodes no JPEG.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import keras
+import numpy as np
+
+from clonedrive.data.augment import AugmentConfig, augment_batch
+from clonedrive.data.recipe import Samples
+
+FRAME_SHAPE = (160, 320, 3)  # rows, columns, RGB
+FRAME_BYTES = int(np.prod(FRAME_SHAPE))
+#: Caches larger than this go to a memmap file when a folder for it is given, bytes.
+DEFAULT_MEMORY_LIMIT_BYTES = 2 * 1024**3
+
+
+class ImageDecodeError(ValueError):
+    """An image that cannot be used; ``reason`` is ``image_missing`` (cannot be read),
+    ``image_corrupt`` (does not decode) or ``image_size`` (not 320x160x3)."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(detail)
+        self.reason = reason
+
+
+def decode_rgb(data: bytes | np.ndarray, out: np.ndarray | None = None, *, name: str = "image"
+               ) -> np.ndarray:
+    """Decode JPEG/PNG bytes to a uint8 RGB array (OpenCV decodes to BGR; converted here)."""
+    import cv2
+
+    buffer = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
+    bgr = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
+    if bgr is None:
+        raise ImageDecodeError("image_corrupt", f"{name} does not decode as an image")
+    if bgr.shape != FRAME_SHAPE:
+        raise ImageDecodeError(
+            "image_size",
+            f"{name} is {bgr.shape[1]}x{bgr.shape[0]}, expected {FRAME_SHAPE[1]}x{FRAME_SHAPE[0]}"
+        )
+    if out is None:
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB, dst=out)
+    return out
+
+
+def read_rgb(path: str | os.PathLike, out: np.ndarray | None = None) -> np.ndarray:
+    """Read an image file as uint8 RGB (160, 320, 3); ``ImageDecodeError`` if unusable."""
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as error:
+        raise ImageDecodeError(
+            "image_missing", f"{path} cannot be read: {error.strerror or error}"
+        ) from None
+    return decode_rgb(data, out, name=str(path))
+
+
+class ImageCache:
+    """Decoded uint8 RGB frames of ``paths``, decoded at most once each.
+
+    Lives in memory, or in ``memmap_path`` (created, overwritten) when the frames would take
+    more than ``memory_limit_bytes``. ``decode_count`` counts JPEG decodes.
+    """
+
+    def __init__(
+        self,
+        paths: Sequence[Path],
+        *,
+        memmap_path: str | os.PathLike | None = None,
+        memory_limit_bytes: int = DEFAULT_MEMORY_LIMIT_BYTES,
+    ) -> None:
+        self.paths = list(paths)
+        shape = (len(self.paths), *FRAME_SHAPE)
+        self.memmap_path: Path | None = None
+        if memmap_path is not None and len(self.paths) * FRAME_BYTES > memory_limit_bytes:
+            self.memmap_path = Path(memmap_path)
+            self.memmap_path.parent.mkdir(parents=True, exist_ok=True)
+            self.frames = np.memmap(self.memmap_path, dtype=np.uint8, mode="w+", shape=shape)
+        else:
+            self.frames = np.empty(shape, dtype=np.uint8)
+        self.filled = np.zeros(len(self.paths), dtype=bool)
+        self.failed: dict[int, ImageDecodeError] = {}  # index -> why it cannot be used
+        self.decode_count = 0
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.frames.nbytes)
+
+    def _decode(self, index: int) -> bool:
+        try:
+            read_rgb(self.paths[index], out=self.frames[index])
+        except ImageDecodeError as error:
+            with self._lock:
+                self.decode_count += 1
+                self.failed[index] = error
+            return False
+        with self._lock:
+            self.decode_count += 1
+            self.filled[index] = True
+        return True
+
+    def fill(self, *, workers: int = 2, progress: bool = False) -> dict[int, ImageDecodeError]:
+        """Decode every frame not yet cached (OpenCV decodes outside the GIL, so threads
+        help); returns ``{index: error}`` for the files that could not be used."""
+        todo = [int(index) for index in np.flatnonzero(~self.filled) if index not in self.failed]
+        bar = None
+        if progress and todo:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(todo), desc="decoding images", unit="img")
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+            for _ in pool.map(self._decode, todo, chunksize=64):
+                if bar is not None:
+                    bar.update()
+        if bar is not None:
+            bar.close()
+        return dict(self.failed)
+
+    def get(self, indices: np.ndarray) -> np.ndarray:
+        """The frames at ``indices`` as a new (len, 160, 320, 3) uint8 array, decoding any
+        not cached yet. Raises ``ImageDecodeError`` for an unusable file."""
+        indices = np.asarray(indices, dtype=np.int64)
+        for index in np.unique(indices[~self.filled[indices]]):
+            if int(index) in self.failed or not self._decode(int(index)):
+                raise self.failed[int(index)]
+        return self.frames[indices]
+
+    def close(self, *, delete: bool = True) -> None:
+        """Release the memmap (and delete its file if ``delete``)."""
+        if self.memmap_path is not None:
+            if isinstance(self.frames, np.memmap):
+                self.frames.flush()
+            # Dropping the last reference unmaps the file (batches hold copies, not views).
+            self.frames = np.empty((0, *FRAME_SHAPE), dtype=np.uint8)
+            self.filled = np.zeros(0, dtype=bool)
+            if delete:
+                self.memmap_path.unlink(missing_ok=True)
+
+
+class DrivingBatches(keras.utils.PyDataset):
+    """Batches ``(images, steering[, weight])`` of ``samples`` for ``model.fit``.
+
+    ``images``: (N, 160, 320, 3) uint8 RGB (the models cast to float32 themselves);
+    ``steering``: (N,) float32 in [-1, 1]; ``weight`` (N,) float32 only when some recording's
+    weight is not 1. With ``shuffle`` the order is a permutation drawn from
+    ``(seed, epoch)``; with ``augment`` each batch is augmented with a generator drawn from
+    ``(seed, epoch, batch index)``, so results do not depend on worker timing and a resumed
+    run sees the same batches it would have seen. ``epoch`` advances in ``on_epoch_end``.
+    """
+
+    def __init__(
+        self,
+        samples: Samples,
+        cache: ImageCache,
+        *,
+        batch_size: int,
+        shuffle: bool = False,
+        augment: AugmentConfig | None = None,
+        seed: int = 0,
+        epoch: int = 0,
+        workers: int = 1,
+        max_queue_size: int = 4,
+    ) -> None:
+        super().__init__(workers=workers, use_multiprocessing=False, max_queue_size=max_queue_size)
+        if batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if len(samples) == 0:
+            raise ValueError("no samples to batch")
+        self.samples = samples
+        self.cache = cache
+        self.batch_size = int(batch_size)
+        self.shuffle = shuffle
+        self.augment = augment
+        self.seed = int(seed)
+        self.with_weights = bool(np.any(samples.weight != 1.0))
+        self.epoch = int(epoch)
+        self._order = self._make_order()
+
+    def _make_order(self) -> np.ndarray:
+        if not self.shuffle:
+            return np.arange(len(self.samples))
+        return np.random.default_rng([self.seed, self.epoch]).permutation(len(self.samples))
+
+    def __len__(self) -> int:
+        return math.ceil(len(self.samples) / self.batch_size)
+
+    def batch_indices(self, index: int) -> np.ndarray:
+        """Indices into ``samples`` of batch ``index`` in the current epoch."""
+        if not 0 <= index < len(self):
+            raise IndexError(f"batch {index} out of range [0, {len(self)})")
+        return self._order[index * self.batch_size : (index + 1) * self.batch_size]
+
+    def __getitem__(self, index: int):
+        chosen = self.batch_indices(index)
+        images = self.cache.get(self.samples.image_index[chosen])
+        steering = self.samples.steering[chosen]
+        mirrored = self.samples.flip[chosen]
+        if mirrored.any():  # the recipe's flipped copies (labels are already negated)
+            images[mirrored] = images[mirrored][:, :, ::-1]
+        if self.augment is not None:
+            rng = np.random.default_rng([self.seed, self.epoch, index])
+            images, steering = augment_batch(images, steering, rng, self.augment)
+        steering = np.asarray(steering, dtype=np.float32)
+        if self.with_weights:
+            return images, steering, self.samples.weight[chosen]
+        return images, steering
+
+    def on_epoch_end(self) -> None:
+        self.epoch += 1
+        self._order = self._make_order()

@@ -1,0 +1,520 @@
+"""Train a steering network on recordings: recipe -> samples -> balance -> split -> fit.
+
+``train(config, source, out_dir)`` writes into ``out_dir``:
+
+- ``model.keras``  the model of the epoch with the lowest validation loss;
+- ``last.keras``   the model and optimiser state after the latest epoch (for ``resume``);
+- ``model.h5``     a legacy HDF5 copy of ``model.keras`` for tools that expect one;
+- ``history.csv``  per epoch: loss, val_loss (both include the L2 penalty), mse, val_mse
+  (plain mean squared steering error), seconds;
+- ``loss.png``     training and validation loss per epoch;
+- ``config.json``  the :class:`TrainConfig` (loadable with ``config.load_config``);
+- ``recipe.toml``  the recipe used, with absolute paths (``resume`` reads it back);
+- ``dataset.json`` sample counts, skipped rows and images by reason, the split used;
+- ``steering_before.png`` / ``steering_after.png``  histograms around balancing;
+- ``state.json``   epochs done and best validation loss, written last each epoch.
+
+Every epoch-end file is written atomically (temp file + rename). A run killed mid-epoch is
+resumed with ``resume=True`` from ``last.keras`` at the epoch after the last completed one;
+shuffling and augmentation are drawn from ``(seed, epoch, batch)``, so the resumed epochs see
+the batches the uninterrupted run would have seen.
+
+Randomness: weight initialisers and dropout get explicit seeds from ``config.seed``, balancing,
+splitting, shuffling and augmentation use ``numpy.random.Generator``s seeded from it; no global
+random state is set.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import logging
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from clonedrive.config import config_to_dict, load_config, save_config, write_json_atomic
+from clonedrive.data.recipe import (
+    DEFAULT_CORRECTION,
+    Recipe,
+    default_recipe_for,
+    load_recipe,
+    recipe_to_toml,
+)
+
+logger = logging.getLogger(__name__)
+
+CACHE_MODES = ("auto", "memory", "memmap")
+HISTORY_COLUMNS = ("epoch", "loss", "val_loss", "mse", "val_mse", "seconds")
+CACHE_FILE = "image_cache.u8"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings; defaults are the write-up's."""
+
+    model: str = "seed"  # seed | pilotnet | fast (see model.architectures)
+    learning_rate: float = 1e-4  # Adam
+    loss: str = "mse"
+    batch_size: int = 256
+    epochs: int = 7  # total epochs, counting any done before a resume
+    correction: float = DEFAULT_CORRECTION  # side-camera correction of a DIR-only recipe
+    balance: bool = True  # the write-up's steering histogram balancing
+    balance_bins: int = 20
+    split: str = "random"  # random | blocks | recording (see data.split)
+    val_fraction: float = 0.2
+    block_s: float = 10.0  # block length of the "blocks" split, seconds
+    augment: bool = True  # training-only augmentation (see data.augment)
+    seed: int = 0
+    early_stopping_patience: int | None = None  # stop after this many epochs without a best
+    dropout: float = 0.0  # 0 = off
+    workers: int = 1  # PyDataset worker threads
+    cache: str = "auto"  # decoded images: memory | memmap (a file in out_dir) | auto
+    cache_memory_limit_mb: int = 2048  # "auto" uses a memmap above this size
+    export_h5: bool = True  # also write model.h5
+
+    def __post_init__(self) -> None:
+        from clonedrive.data.split import SPLIT_KINDS
+
+        if self.split not in SPLIT_KINDS:
+            raise ValueError(f"split {self.split!r}; expected one of: {', '.join(SPLIT_KINDS)}")
+        if self.cache not in CACHE_MODES:
+            raise ValueError(f"cache {self.cache!r}; expected one of: {', '.join(CACHE_MODES)}")
+        if self.batch_size < 1 or self.epochs < 1:
+            raise ValueError("batch_size and epochs must be >= 1")
+        if not 0.0 < self.val_fraction < 1.0:
+            raise ValueError(f"val_fraction must be in (0, 1), got {self.val_fraction}")
+        if not self.learning_rate > 0:
+            raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if self.early_stopping_patience is not None and self.early_stopping_patience < 1:
+            raise ValueError("early_stopping_patience must be >= 1 or None")
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """What a training run produced."""
+
+    out_dir: Path
+    model_path: Path  # model.keras, the best epoch
+    epochs_done: int  # total, including epochs before a resume
+    best_epoch: int  # 1-based
+    best_val_loss: float
+    stopped_early: bool
+    history: list[dict] = field(repr=False)
+    dataset: dict = field(repr=False)  # what dataset.json holds
+
+
+def resolve_source(source: Recipe | str | os.PathLike | Sequence[str | os.PathLike],
+                   correction: float = DEFAULT_CORRECTION) -> Recipe:
+    """A Recipe from a Recipe, a ``.toml`` recipe path, or recording folder(s)."""
+    if isinstance(source, Recipe):
+        return source
+    if isinstance(source, str | os.PathLike):
+        if Path(source).suffix.lower() == ".toml":
+            return load_recipe(source)
+        source = [source]
+    return default_recipe_for(list(source), correction=correction)
+
+
+def train(
+    config: TrainConfig,
+    source: Recipe | str | os.PathLike | Sequence[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    resume: bool = False,
+    progress: bool = True,
+) -> TrainResult:
+    """Train ``config.model`` on ``source`` (a Recipe, a recipe file, or recording folders)
+    and write the run folder ``out_dir`` (see module doc).
+
+    With ``resume``, continue the run in ``out_dir`` from ``last.keras``: ``config`` must
+    match the saved ``config.json`` except for ``epochs``, ``early_stopping_patience`` and
+    ``workers``. Without it, ``out_dir`` must not hold a previous run.
+    """
+    import keras
+
+    from clonedrive.data.augment import AugmentConfig
+    from clonedrive.data.batches import DrivingBatches
+    from clonedrive.model.architectures import build_model
+
+    out = Path(out_dir)
+    recipe = resolve_source(source, config.correction)
+    state = _prepare_run_folder(out, config, recipe, resume)
+    save_config(config, out / "config.json")
+    _write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
+
+    data = _prepare_data(config, recipe, out, progress=progress)
+    try:
+        write_json_atomic(out / "dataset.json", data.report)
+        _print(progress, data.summary)
+        epochs_done = state["epochs_done"]
+        history = _read_history(out / "history.csv")[:epochs_done]
+        train_batches = DrivingBatches(
+            data.train, data.cache, batch_size=config.batch_size, shuffle=True,
+            augment=AugmentConfig() if config.augment else None, seed=config.seed,
+            epoch=epochs_done, workers=config.workers,
+        )
+        val_batches = DrivingBatches(
+            data.val, data.cache, batch_size=config.batch_size, workers=config.workers
+        )
+        if epochs_done > 0:
+            model = keras.saving.load_model(out / "last.keras", safe_mode=True)
+            _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
+        else:
+            model = build_model(config.model, seed=config.seed, dropout=config.dropout)
+            model.compile(
+                optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate),
+                loss=config.loss,
+                metrics=[keras.metrics.MeanSquaredError(name="mse")],
+            )
+        recorder = _run_recorder_class()(out, config, history, state)
+        if epochs_done < config.epochs and not recorder.should_stop():
+            model.fit(
+                train_batches,
+                validation_data=val_batches,
+                epochs=config.epochs,
+                initial_epoch=epochs_done,
+                shuffle=False,  # DrivingBatches shuffles, reproducibly
+                verbose=1 if progress else 0,
+                callbacks=[recorder],
+            )
+    finally:
+        data.cache.close(delete=True)
+
+    if config.export_h5 and (out / "model.keras").is_file():
+        export_h5(out / "model.keras", out / "model.h5")
+    best = recorder.best_epoch()
+    return TrainResult(
+        out_dir=out,
+        model_path=out / "model.keras",
+        epochs_done=len(recorder.history),
+        best_epoch=best[0],
+        best_val_loss=best[1],
+        stopped_early=recorder.stopped_early,
+        history=list(recorder.history),
+        dataset=data.report,
+    )
+
+
+def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike) -> Path:
+    """Save the model at ``keras_path`` in the legacy HDF5 format (atomically)."""
+    import keras
+
+    h5_path = Path(h5_path)
+    model = keras.saving.load_model(keras_path, safe_mode=True, compile=False)
+    temporary = h5_path.with_name(f".{h5_path.stem}.tmp.h5")
+    logging.getLogger("absl").setLevel(logging.ERROR)  # "HDF5 is legacy": we know
+    model.save(temporary)
+    os.replace(temporary, h5_path)
+    return h5_path
+
+
+def load_run_config(out_dir: str | os.PathLike) -> TrainConfig:
+    """The TrainConfig a run folder was trained with."""
+    return load_config(TrainConfig, Path(out_dir) / "config.json")
+
+
+# --- run folder -------------------------------------------------------------------------------
+
+_RESUME_MAY_CHANGE = ("epochs", "early_stopping_patience", "workers")
+
+
+def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: bool) -> dict:
+    state_path = out / "state.json"
+    if resume:
+        if not state_path.is_file() or not (out / "last.keras").is_file():
+            if state_path.is_file() or (out / "config.json").is_file():
+                logger.warning("%s: no completed epoch to resume from; starting over", out)
+            return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
+        saved = config_to_dict(load_run_config(out))
+        wanted = config_to_dict(config)
+        changed = [
+            key for key in saved if key not in _RESUME_MAY_CHANGE and saved[key] != wanted[key]
+        ]
+        if changed:
+            raise ValueError(
+                f"{out}: cannot resume with different settings: "
+                + ", ".join(f"{key} {saved[key]!r} -> {wanted[key]!r}" for key in changed)
+            )
+        saved_recipe = load_recipe(out / "recipe.toml")
+        if saved_recipe.recordings != recipe.recordings:
+            raise ValueError(
+                f"{out}: cannot resume with a different recipe than {out / 'recipe.toml'}"
+            )
+        with open(state_path, encoding="utf-8") as handle:
+            return json.load(handle)
+    if state_path.exists() or (out / "model.keras").exists():
+        raise FileExistsError(
+            f"{out} already holds a training run; resume it (--resume) or choose another --out"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    temporary = path.with_name(f".{path.name}.tmp")
+    with open(temporary, "w", encoding="utf-8") as handle:
+        handle.write(text)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(temporary, path)
+
+
+def _read_history(path: Path) -> list[dict]:
+    if not path.is_file():
+        return []
+    with open(path, encoding="utf-8", newline="") as handle:
+        return [
+            {key: (int(value) if key == "epoch" else float(value)) for key, value in row.items()}
+            for row in csv.DictReader(handle)
+        ]
+
+
+def _print(enabled: bool, text: str) -> None:
+    if enabled:
+        print(text, flush=True)
+
+
+# --- data ---------------------------------------------------------------------------------
+
+
+@dataclass
+class _PreparedData:
+    train: object  # Samples
+    val: object  # Samples
+    cache: object  # ImageCache
+    report: dict
+    summary: str
+
+
+def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: bool
+                  ) -> _PreparedData:
+    """expand -> balance -> split -> decode the used images once (unusable ones skipped)."""
+    from clonedrive.data.balance import balance_steering, save_balance_plots
+    from clonedrive.data.batches import FRAME_BYTES, ImageCache
+    from clonedrive.data.recipe import expand
+    from clonedrive.data.split import split_samples
+
+    samples = expand(recipe)
+    if len(samples) == 0:
+        raise ValueError(
+            f"no usable samples in {', '.join(str(spec.path) for spec in recipe.recordings)}"
+            + (f" (skipped rows: {samples.skipped})" if samples.skipped else "")
+        )
+    lines = [
+        f"{len(recipe.recordings)} recording(s), {samples.rows_read} usable rows, "
+        f"{len(samples)} samples"
+    ]
+    if samples.skipped:
+        lines.append(f"skipped rows: {_counts_text(samples.skipped)}")
+
+    balance_rng = np.random.default_rng([config.seed, 1])
+    if config.balance:
+        balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
+        samples = samples.subset(balanced.keep)
+        lines.append(balanced.summary())
+    else:
+        balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
+        balanced = _unbalanced(balanced)
+        lines.append(f"balancing off: {len(samples)} samples")
+    save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
+
+    split = split_samples(
+        samples, config.split, np.random.default_rng([config.seed, 2]),
+        val_fraction=config.val_fraction, block_s=config.block_s,
+    )
+    lines.append(split.description)
+
+    samples = samples.compact()
+    limit = config.cache_memory_limit_mb * 1024**2
+    if config.cache == "memory":
+        cache = ImageCache(samples.unique_paths)
+    elif config.cache == "memmap":
+        cache = ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE, memory_limit_bytes=0)
+    else:
+        cache = ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
+                           memory_limit_bytes=limit)
+    lines.append(
+        f"image cache: {len(cache)} images, {len(cache) * FRAME_BYTES / 1e6:.0f} MB "
+        + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
+    )
+    failed = cache.fill(workers=2, progress=progress)
+    bad_images: dict[str, int] = {}
+    for error in failed.values():
+        bad_images[error.reason] = bad_images.get(error.reason, 0) + 1
+    train_samples, dropped_train = samples.subset(split.train).drop_images(failed)
+    val_samples, dropped_val = samples.subset(split.val).drop_images(failed)
+    if failed:
+        lines.append(
+            f"skipped images: {_counts_text(bad_images)} ({dropped_train + dropped_val} samples)"
+        )
+        for error in list(failed.values())[:5]:
+            logger.warning("skipped image: %s", error)
+    if len(train_samples) == 0 or len(val_samples) == 0:
+        cache.close(delete=True)
+        raise ValueError(
+            f"after skipping unusable images, {len(train_samples)} training and "
+            f"{len(val_samples)} validation samples remain; need at least one of each"
+        )
+
+    report = {
+        "recordings": [
+            {"name": spec.name, "path": str(spec.path), "cameras": spec.cameras,
+             "correction": spec.correction, "steering_offset": spec.steering_offset,
+             "flip": spec.flip, "weight": spec.weight}
+            for spec in recipe.recordings
+        ],
+        "rows_read": samples.rows_read,
+        "skipped_rows": samples.skipped,
+        "skipped_row_details": samples.skipped_details[:100],
+        "samples_before_balance": int(balanced.counts_before.sum()),
+        "samples_after_balance": int(balanced.counts_after.sum()),
+        "balance": {
+            "enabled": config.balance,
+            "bin_edges": [round(float(edge), 6) for edge in balanced.bin_edges],
+            "counts_before": balanced.counts_before.tolist(),
+            "counts_after": balanced.counts_after.tolist(),
+            "target_per_bin": balanced.target,
+        },
+        "split": {"kind": split.kind, "description": split.description,
+                  "val_fraction": config.val_fraction,
+                  "block_s": config.block_s if split.kind == "blocks" else None},
+        "skipped_images": bad_images,
+        "skipped_image_samples": dropped_train + dropped_val,
+        "train_samples": len(train_samples),
+        "val_samples": len(val_samples),
+        "images_cached": len(cache),
+    }
+    lines.append(f"training on {len(train_samples)} samples, validating on {len(val_samples)}")
+    return _PreparedData(train_samples, val_samples, cache, report, "\n".join(lines))
+
+
+def _unbalanced(result):
+    """A BalanceResult that keeps everything (balancing off), for the histograms."""
+    import dataclasses
+
+    return dataclasses.replace(
+        result,
+        keep=np.arange(int(result.counts_before.sum())),
+        counts_after=result.counts_before.copy(),
+        keep_probability=np.ones_like(result.keep_probability),
+    )
+
+
+def _counts_text(counts: dict[str, int]) -> str:
+    return ", ".join(f"{count} {reason}" for reason, count in counts.items())
+
+
+# --- per-epoch bookkeeping ------------------------------------------------------------------
+
+
+def _run_recorder_class():
+    """The Keras callback class that records a run (built on first use: keras is heavy)."""
+    import keras
+
+    class RunRecorder(keras.callbacks.Callback):
+        """After every epoch: last.keras, model.keras if best, history.csv, loss.png, state.json
+        (in that order, each atomically); early stopping from the whole history."""
+
+        def __init__(self, out: Path, config: TrainConfig, history: list[dict], state: dict):
+            super().__init__()
+            self.out = out
+            self.config = config
+            self.history = list(history)
+            self.state = dict(state)
+            self.stopped_early = False
+            self._epoch_started = time.perf_counter()
+
+        def best_epoch(self) -> tuple[int, float]:
+            if not self.history:
+                return 0, math.nan
+            best = min(self.history, key=lambda row: row["val_loss"])
+            return int(best["epoch"]), float(best["val_loss"])
+
+        def should_stop(self) -> bool:
+            patience = self.config.early_stopping_patience
+            if patience is None or not self.history:
+                return False
+            return len(self.history) - self.best_epoch()[0] >= patience
+
+        def on_epoch_begin(self, epoch, logs=None):
+            self._epoch_started = time.perf_counter()
+
+        def on_epoch_end(self, epoch, logs=None):
+            logs = logs or {}
+            row = {
+                "epoch": epoch + 1,
+                "loss": float(logs.get("loss", math.nan)),
+                "val_loss": float(logs.get("val_loss", math.nan)),
+                "mse": float(logs.get("mse", math.nan)),
+                "val_mse": float(logs.get("val_mse", math.nan)),
+                "seconds": round(time.perf_counter() - self._epoch_started, 3),
+            }
+            previous_best = self.best_epoch()[1] if self.history else math.inf
+            self.history.append(row)
+            _save_model_atomic(self.model, self.out / "last.keras")
+            if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
+                _save_model_atomic(self.model, self.out / "model.keras")
+            _write_history(self.out / "history.csv", self.history)
+            plot_loss(self.history, self.out / "loss.png")
+            best_epoch, best_loss = self.best_epoch()
+            self.state = {"epochs_done": epoch + 1, "best_epoch": best_epoch,
+                          "best_val_loss": best_loss}
+            write_json_atomic(self.out / "state.json", self.state)
+            if self.should_stop():
+                self.stopped_early = True
+                self.model.stop_training = True
+                print(
+                    f"early stopping: no better validation loss for "
+                    f"{self.config.early_stopping_patience} epoch(s); best epoch {best_epoch}",
+                    flush=True,
+                )
+
+    return RunRecorder
+
+def _save_model_atomic(model, path: Path) -> None:
+    temporary = path.with_name(f".{path.stem}.tmp.keras")
+    model.save(temporary)
+    os.replace(temporary, path)
+
+
+def _write_history(path: Path, history: list[dict]) -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=HISTORY_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in history:
+        writer.writerow({key: row[key] for key in HISTORY_COLUMNS})
+    _write_text_atomic(path, buffer.getvalue())
+
+
+def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
+    """Training and validation loss per epoch as a PNG (matplotlib Agg), atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
+    path = Path(path)
+    epochs = [row["epoch"] for row in history]
+    figure = Figure(figsize=(7, 4), dpi=100)
+    axes = figure.add_subplot()
+    axes.plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
+    axes.plot(epochs, [row["val_loss"] for row in history], "s-", label="validation loss")
+    axes.set_xlabel("epoch")
+    axes.set_ylabel("loss (steering MSE + any L2 penalty)")
+    axes.set_title("training and validation loss")
+    axes.xaxis.set_major_locator(MaxNLocator(integer=True))
+    axes.grid(True, alpha=0.3)
+    axes.legend()
+    figure.tight_layout()
+    temporary = path.with_name(f".{path.stem}.tmp.png")
+    figure.savefig(temporary, format="png")
+    os.replace(temporary, path)
+    return path

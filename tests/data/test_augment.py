@@ -1,0 +1,127 @@
+"""Augmentation: flips mirror pixels and negate steering, shifts correct steering the right way."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.data.augment import (
+    STEERING_PER_PX,
+    AugmentConfig,
+    augment_batch,
+    flip_horizontal,
+    shade,
+    shift_and_flip,
+)
+from clonedrive.data.batches import read_rgb
+from clonedrive.data.driving_log import read_driving_log
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
+NONE = AugmentConfig(
+    flip_probability=0.0, shift_max_px=0, vertical_shift_max_px=0, brightness_min=1.0,
+    brightness_max=1.0, shadow_probability=0.0,
+)
+
+
+def _frames(count: int = 4, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, (count, 160, 320, 3), dtype=np.uint8)
+
+
+def test_flip_mirrors_pixels_and_negates_steering() -> None:
+    frames = _frames()
+    steering = np.array([0.3, -0.5, 0.0, 1.0], dtype=np.float32)
+    flipped, labels = flip_horizontal(frames, steering)
+    np.testing.assert_array_equal(flipped[:, :, 0], frames[:, :, -1])
+    np.testing.assert_array_equal(flipped[:, 37, 200], frames[:, 37, 119])
+    np.testing.assert_array_equal(flipped[..., 0], frames[:, :, ::-1, 0])  # channels untouched
+    np.testing.assert_array_equal(labels, -steering)
+    same, labels_again = shift_and_flip(frames, steering, [0] * 4, [0] * 4, [True] * 4)
+    np.testing.assert_array_equal(same, flipped)
+    np.testing.assert_array_equal(labels_again, labels)
+
+
+def test_shift_moves_pixels_and_corrects_steering() -> None:
+    frames = _frames(2)
+    steering = np.array([0.1, 0.1], dtype=np.float32)
+    out, labels = shift_and_flip(frames, steering, [10, -20], [0, 3], [False, False])
+    # Image 0: picture moved 10 px right, the left edge column repeated into the gap.
+    np.testing.assert_array_equal(out[0, :, 10:], frames[0, :, :-10])
+    np.testing.assert_array_equal(out[0, :, :10], np.repeat(frames[0, :, :1], 10, axis=1))
+    # Image 1: 20 px left and 3 px down.
+    np.testing.assert_array_equal(out[1, 3:, :-20], frames[1, :-3, 20:])
+    np.testing.assert_array_equal(out[1, :3, :-20], np.repeat(frames[1, :1, 20:], 3, axis=0))
+    np.testing.assert_allclose(
+        labels, [0.1 + 10 * STEERING_PER_PX, 0.1 - 20 * STEERING_PER_PX], rtol=1e-6
+    )
+    # Shift then flip: the label of the shifted frame, negated.
+    _, mirrored = shift_and_flip(frames, steering, [10, -20], [0, 0], [True, True])
+    np.testing.assert_allclose(mirrored, -labels)
+
+
+def test_shift_correction_has_the_sign_of_the_side_cameras() -> None:
+    """The left camera (label +correction) sees the road where the center camera's picture,
+    shifted to the right, shows it; a right shift must therefore add steering too."""
+    log = read_driving_log(FIXTURES / "lake_posix_mixed_columns")
+    road = (slice(95, 135), slice(90, 230))  # the road just ahead of the car
+    shifts = np.arange(-80, 81, 2)
+    count = len(shifts)
+    for row in log.rows[::20]:
+        center = np.repeat(read_rgb(row.center)[None], count, axis=0)
+        shifted, labels = shift_and_flip(
+            center, np.zeros(count), shifts, np.zeros(count), np.zeros(count, bool)
+        )
+        road_views = shifted[(slice(None), *road)].astype(np.int32)
+        best = {}
+        for camera in ("left", "right"):
+            side = read_rgb(row.image(camera))[road].astype(np.int32)
+            errors = np.abs(road_views - side[None]).mean(axis=(1, 2, 3))
+            best[camera] = int(np.argmin(errors))
+        assert shifts[best["left"]] > 15 and shifts[best["right"]] < -15
+        assert labels[best["left"]] > 0  # same sign as the left camera's +correction
+        assert labels[best["right"]] < 0
+
+
+def test_shade_brightness_and_shadow_sides() -> None:
+    frames = np.full((3, 160, 320, 3), 200, dtype=np.uint8)
+    line = np.full(3, 160.0, dtype=np.float32)
+    out = shade(frames, brightness=np.array([0.5, 1.0, 1.0]), shadow=np.array([False, True, True]),
+                top_x=line, bottom_x=line, darkness=np.array([0.5, 0.5, 0.5]),
+                right_side=np.array([False, False, True]))
+    assert np.all(out[0] == 100)
+    assert np.all(out[1, :, :160] == 100) and np.all(out[1, :, 160:] == 200)
+    assert np.all(out[2, :, :160] == 200) and np.all(out[2, :, 160:] == 100)
+    bright = shade(frames, np.array([1.2] * 3), np.zeros(3, bool), line, line, np.ones(3),
+                   np.zeros(3, bool))
+    assert np.all(bright == 240) and bright.dtype == np.uint8
+
+
+def test_augment_batch_is_seeded_and_leaves_its_input_alone() -> None:
+    frames = _frames(8)
+    original = frames.copy()
+    steering = np.linspace(-0.5, 0.5, 8).astype(np.float32)
+    first = augment_batch(frames, steering, np.random.default_rng(3))
+    second = augment_batch(frames, steering, np.random.default_rng(3))
+    np.testing.assert_array_equal(first[0], second[0])
+    np.testing.assert_array_equal(first[1], second[1])
+    np.testing.assert_array_equal(frames, original)
+    assert first[0].dtype == np.uint8 and first[0].shape == frames.shape
+    assert first[1].dtype == np.float32 and first[1].shape == (8,)
+    # Labels move only by flips and the shift correction.
+    config = AugmentConfig()
+    bound = config.shift_max_px * config.steering_per_px + 1e-6
+    assert np.all(np.minimum(abs(first[1] - steering), abs(first[1] + steering)) <= bound)
+
+
+def test_augment_batch_with_nothing_enabled_is_identity() -> None:
+    frames = _frames(3)
+    steering = np.array([0.2, -0.1, 0.0], dtype=np.float32)
+    images, labels = augment_batch(frames, steering, np.random.default_rng(0), NONE)
+    np.testing.assert_array_equal(images, frames)
+    np.testing.assert_array_equal(labels, steering)
+
+
+def test_augment_batch_rejects_non_uint8() -> None:
+    with pytest.raises(ValueError, match="uint8 images"):
+        augment_batch(np.zeros((1, 160, 320, 3), np.float32), np.zeros(1), np.random.default_rng())

@@ -1,0 +1,418 @@
+"""The drive server: what Udacity's ``drive.py`` does, for the Udacity simulator and for ours.
+
+The simulator connects to ``ws://127.0.0.1:4567/socket.io/?EIO=4&transport=websocket`` and sends
+one ``telemetry`` event per command it receives (lock-step). For each one the server decodes the
+center-camera JPEG (BGR -> RGB), asks the policy for ``(steering, throttle)`` and answers
+``42["steer",{"steering_angle":"<str>","throttle":"<str>"}]``. The Engine.IO 3 / Socket.IO
+framing is done here by hand over a plain WebSocket (see :mod:`clonedrive.drive.protocol`), so
+events are accepted whether or not the client ever sent a Socket.IO CONNECT (the simulator never
+does -- the reason python-socketio 5 servers leave the car standing).
+
+What gets which answer:
+
+* ``42["telemetry",{...}]`` -> ``steer`` with the policy's controls;
+* ``42["telemetry",null]`` (manual mode) -> ``42["manual",{}]``;
+* a frame that starts with ``42`` but cannot be used -- not JSON, missing or non-numeric fields,
+  invalid base64, not a JPEG, corrupt JPEG, wrong image size, larger than
+  ``max_message_bytes`` -- is logged, counted and answered with the safe command
+  ``42["steer",{"steering_angle":"0","throttle":"0"}]`` so the simulator's loop keeps going;
+* ping ``2<data>`` -> pong ``3<data>`` (``2probe`` -> ``3probe``); CONNECT ``40`` -> ``40``;
+  close ``1`` or DISCONNECT ``41`` -> the connection is closed;
+* anything else (binary frames, text that is not Engine.IO, events other than ``telemetry``) is
+  logged, counted and ignored: answering it would break the lock-step of a real client.
+
+Memory is bounded: a message over ``max_message_bytes`` (1 MiB; a real frame is ~15 KB) is
+refused unread beyond its size, one over the WebSocket limit (2 MiB) makes ``websockets`` close
+that connection (code 1009) while the server keeps serving, JPEG sizes are read from the header
+before decoding, and at most ``max_connections`` clients are served at once.
+
+Unlike drive.py the server binds 127.0.0.1 unless told otherwise, resets the policy on each
+new connection, and never deletes an existing image folder (frames are added to it).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import logging
+import os
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
+from pathlib import Path
+from urllib.parse import parse_qs, urlsplit
+
+from websockets.asyncio.server import Server, ServerConnection, serve
+from websockets.exceptions import ConnectionClosed
+from websockets.http11 import Request, Response
+
+from clonedrive.drive import protocol
+from clonedrive.drivers.network import Policy
+
+logger = logging.getLogger("clonedrive.drive")
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 4567
+#: A text frame longer than this (characters = bytes: frames are ASCII) gets the safe reply.
+MAX_MESSAGE_BYTES = 1 << 20
+#: ``websockets`` closes a connection (1009) that sends a message longer than this.
+WEBSOCKET_MAX_SIZE = 2 << 20
+SOCKET_PATH = "/socket.io"
+_BAD_LOG_FIRST = 20  # bad messages logged in full per reason, then one in _BAD_LOG_EVERY
+_BAD_LOG_EVERY = 100
+
+
+@dataclass
+class DriveStats:
+    """Counters of one server's life (read them with :meth:`DriveServer.stats`)."""
+
+    connections: int = 0  # connections accepted, ever
+    active_connections: int = 0
+    messages: int = 0  # WebSocket messages received
+    steer: int = 0  # telemetry answered with the policy's controls
+    manual: int = 0  # telemetry null answered with manual
+    safe: int = 0  # telemetry-like frames answered with the safe command
+    pings: int = 0
+    ignored: int = 0  # frames logged and not answered
+    bad: dict[str, int] = field(default_factory=dict)  # reason -> count
+    last_steering: float = 0.0
+    last_throttle: float = 0.0
+    last_speed_mph: float = 0.0
+
+    @property
+    def bad_total(self) -> int:
+        return sum(self.bad.values())
+
+
+class _CloseRequested(Exception):
+    """The client asked to close (Engine.IO close or Socket.IO disconnect)."""
+
+
+class DriveServer:
+    """Serve ``policy`` to the Udacity simulator (or any client speaking its protocol).
+
+    ``serve_forever()`` blocks (Ctrl-C stops it); ``start()`` serves from a background thread
+    and returns the bound port (useful with ``port=0``), ``stop()`` ends it. Policy calls run
+    one at a time on a worker thread, so the event loop keeps answering pings meanwhile.
+    ``image_folder``: save each received frame as ``YYYY_MM_DD_HH_MM_SS_mmm.jpg`` (UTC), the
+    JPEG bytes as received.
+    """
+
+    def __init__(
+        self,
+        policy: Policy,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        image_folder: str | os.PathLike | None = None,
+        *,
+        status_interval_s: float = 5.0,
+        max_message_bytes: int = MAX_MESSAGE_BYTES,
+        max_connections: int = 4,
+    ) -> None:
+        self.policy = policy
+        self.host = host
+        self.port = int(port)
+        self.image_folder = Path(image_folder) if image_folder is not None else None
+        self.status_interval_s = float(status_interval_s)
+        self.max_message_bytes = int(max_message_bytes)
+        self.max_connections = int(max_connections)
+        self._stats = DriveStats()
+        self._last_frame_ms = 0
+        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop_event: asyncio.Event | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._startup_error: BaseException | None = None
+
+    # ------------------------------------------------------------------ running
+
+    def serve_forever(self) -> None:
+        """Serve until interrupted (KeyboardInterrupt propagates) or :meth:`stop` is called."""
+        asyncio.run(self._main())
+
+    def start(self, timeout_s: float = 10.0) -> int:
+        """Serve from a daemon thread; returns the bound port once listening."""
+        if self._thread is not None:
+            raise RuntimeError("server already started")
+        self._ready.clear()
+        self._startup_error = None
+        self._thread = threading.Thread(target=self._thread_main, name="drive-server", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout_s):
+            raise TimeoutError(f"drive server did not start within {timeout_s} s")
+        if self._startup_error is not None:
+            self._thread.join()
+            self._thread = None
+            raise self._startup_error
+        return self.port
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Stop serving (closing connections) and wait for the thread started by :meth:`start`."""
+        loop, stop_event = self._loop, self._stop_event
+        if loop is not None and stop_event is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(stop_event.set)
+            except RuntimeError:  # the loop closed between the check and the call
+                pass
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+
+    def __enter__(self) -> DriveServer:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def stats(self) -> DriveStats:
+        """A snapshot of the counters."""
+        return replace(self._stats, bad=dict(self._stats.bad))
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.host}:{self.port}{SOCKET_PATH}/?EIO=4&transport=websocket"
+
+    def _thread_main(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except BaseException as error:  # reported to start(), or logged if it came later
+            if not self._ready.is_set():
+                self._startup_error = error
+                self._ready.set()
+            else:
+                logger.exception("drive server stopped with an error")
+
+    async def _main(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stop_event = asyncio.Event()
+        if self.image_folder is not None:
+            self.image_folder.mkdir(parents=True, exist_ok=True)
+        self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="policy")
+        status_task = None
+        try:
+            async with serve(
+                self._handle_connection,
+                self.host,
+                self.port,
+                process_request=self._check_request,
+                max_size=WEBSOCKET_MAX_SIZE,
+                max_queue=4,
+                ping_interval=protocol.PING_INTERVAL_MS / 1000,
+                ping_timeout=protocol.PING_TIMEOUT_MS / 1000,
+            ) as server:
+                self.port = _bound_port(server, self.port)
+                logger.info("drive server listening on %s", self.url)
+                if self.image_folder is not None:
+                    logger.info("saving received frames to %s", self.image_folder)
+                self._ready.set()
+                if self.status_interval_s > 0:
+                    status_task = asyncio.create_task(self._report_status())
+                await self._stop_event.wait()
+        finally:
+            if status_task is not None:
+                status_task.cancel()
+            self._executor.shutdown(wait=True)
+            self._loop = None
+
+    async def _report_status(self) -> None:
+        previous_steer, previous_time = 0, time.monotonic()
+        while True:
+            await asyncio.sleep(self.status_interval_s)
+            now, stats = time.monotonic(), self._stats
+            rate = (stats.steer - previous_steer) / max(now - previous_time, 1e-9)
+            previous_steer, previous_time = stats.steer, now
+            logger.info(
+                "drive: %d connected, %d steer (%.1f/s), %d manual, %d safe, %d bad, %d pings; "
+                "last steering %+.3f throttle %+.2f at %.1f mph",
+                stats.active_connections,
+                stats.steer,
+                rate,
+                stats.manual,
+                stats.safe,
+                stats.bad_total,
+                stats.pings,
+                stats.last_steering,
+                stats.last_throttle,
+                stats.last_speed_mph,
+            )
+
+    # ------------------------------------------------------------------ connections
+
+    def _check_request(self, connection: ServerConnection, request: Request) -> Response | None:
+        url = urlsplit(request.path)
+        if url.path.rstrip("/") != SOCKET_PATH:
+            return connection.respond(404, f"not found: the drive protocol is at {SOCKET_PATH}/\n")
+        query = parse_qs(url.query)
+        eio = query.get("EIO", ["3"])[-1]
+        if eio not in ("3", "4"):
+            return connection.respond(400, f"unsupported Engine.IO version EIO={eio}\n")
+        transport = query.get("transport", ["websocket"])[-1]
+        if transport != "websocket":
+            return connection.respond(400, "only the websocket transport is supported\n")
+        if self._stats.active_connections >= self.max_connections:
+            return connection.respond(503, "too many connections\n")
+        return None
+
+    async def _handle_connection(self, websocket: ServerConnection) -> None:
+        sid = uuid.uuid4().hex
+        self._stats.connections += 1
+        self._stats.active_connections += 1
+        logger.info("client connected from %s (sid %s)", websocket.remote_address, sid)
+        loop = asyncio.get_running_loop()
+        try:
+            await loop.run_in_executor(self._executor, self.policy.reset)
+            await websocket.send(protocol.open_frame(sid))
+            await websocket.send(protocol.CONNECT_FRAME)
+            async for message in websocket:
+                try:
+                    reply = await self._on_message(message)
+                except _CloseRequested:
+                    break
+                if reply is not None:
+                    await websocket.send(reply)
+        except ConnectionClosed as error:
+            if error.sent is not None and error.sent.code == 1009:
+                detail = f"message over {WEBSOCKET_MAX_SIZE} bytes; connection closed"
+                self._bad("oversized", detail)
+            else:
+                logger.info("connection %s closed: %s", sid, error)
+        finally:
+            self._stats.active_connections -= 1
+            logger.info("client %s disconnected", sid)
+
+    # ------------------------------------------------------------------ messages
+
+    async def _on_message(self, message: str | bytes) -> str | None:
+        """The reply frame to one received message, or None for no reply."""
+        self._stats.messages += 1
+        if isinstance(message, bytes):
+            return self._ignore("binary", f"binary frame of {len(message)} bytes")
+        telemetry_like = message.startswith("42")
+        if len(message) > self.max_message_bytes:
+            detail = f"frame of {len(message)} bytes (limit {self.max_message_bytes})"
+            return (
+                self._safe("oversized", detail)
+                if telemetry_like
+                else self._ignore("oversized", detail)
+            )
+        try:
+            engine = protocol.decode_engine_packet(message)
+        except protocol.ProtocolError as error:
+            return self._ignore("garbage", str(error))
+        if engine.type == protocol.ENGINE_PING:
+            self._stats.pings += 1
+            return protocol.ENGINE_PONG + engine.data
+        if engine.type in (protocol.ENGINE_PONG, protocol.ENGINE_UPGRADE, protocol.ENGINE_NOOP):
+            return None
+        if engine.type == protocol.ENGINE_CLOSE:
+            raise _CloseRequested
+        if engine.type == protocol.ENGINE_OPEN:
+            return self._ignore("garbage", "a client does not send Engine.IO open")
+        return await self._on_socket_message(engine.data, telemetry_like)
+
+    async def _on_socket_message(self, data: str, telemetry_like: bool) -> str | None:
+        try:
+            packet = protocol.decode_socket_packet(data)
+        except protocol.ProtocolError as error:
+            if telemetry_like:
+                return self._safe("not_json", str(error))
+            return self._ignore("garbage", str(error))
+        if packet.namespace != protocol.DEFAULT_NAMESPACE:
+            return self._ignore("namespace", f"namespace {packet.namespace!r} is not served")
+        if packet.type == protocol.SOCKET_CONNECT:
+            return protocol.CONNECT_FRAME
+        if packet.type == protocol.SOCKET_DISCONNECT:
+            raise _CloseRequested
+        if packet.type != protocol.SOCKET_EVENT:
+            return self._ignore("garbage", f"Socket.IO packet type {packet.type} not handled")
+        try:
+            name, args = protocol.event_of(packet)
+        except protocol.ProtocolError as error:
+            return self._safe("bad_event", str(error))
+        if name != "telemetry":
+            return self._ignore("unknown_event", f"event {name!r} is not handled")
+        payload = args[0] if args else None
+        if payload is None:
+            self._stats.manual += 1
+            return protocol.MANUAL_FRAME
+        return await self._on_telemetry(payload)
+
+    async def _on_telemetry(self, payload: object) -> str:
+        try:
+            telemetry = protocol.parse_telemetry(payload)
+        except protocol.TelemetryError as error:
+            return self._safe(error.reason, error.detail)
+        loop = asyncio.get_running_loop()
+        try:
+            steering, throttle, save_error = await loop.run_in_executor(
+                self._executor, self._drive, telemetry
+            )
+            reply = protocol.steer_frame(steering, throttle)
+        except protocol.TelemetryError as error:
+            return self._safe(error.reason, error.detail)
+        except Exception as error:  # a failing policy must not take the server down
+            logger.exception("policy failed on a telemetry frame")
+            return self._safe("policy_error", f"{type(error).__name__}: {error}")
+        if save_error is not None:
+            self._bad("save_error", save_error)
+        stats = self._stats
+        stats.steer += 1
+        stats.last_steering, stats.last_throttle = steering, throttle
+        stats.last_speed_mph = telemetry.speed_mph
+        return reply
+
+    def _drive(self, telemetry: protocol.Telemetry) -> tuple[float, float, str | None]:
+        """Runs on the policy thread: decode, act, save the frame.
+
+        Returns the controls and, if the frame could not be saved, why.
+        """
+        image_rgb = protocol.decode_image(telemetry.image_jpeg)
+        steering, throttle = self.policy.act(image_rgb, telemetry.speed_mph)
+        save_error = None
+        if self.image_folder is not None:
+            save_error = self._save_frame(telemetry.image_jpeg)
+        return float(steering), float(throttle), save_error
+
+    def _save_frame(self, jpeg: bytes) -> str | None:
+        # Names are strictly increasing: a frame within the same millisecond gets the next one.
+        now_ms = max(time.time_ns() // 1_000_000, self._last_frame_ms + 1)
+        self._last_frame_ms = now_ms
+        stamp = datetime.fromtimestamp(now_ms // 1000, tz=timezone.utc)
+        name = f"{stamp:%Y_%m_%d_%H_%M_%S}_{now_ms % 1000:03d}.jpg"
+        path = self.image_folder / name
+        temporary = path.with_name(f".{name}.tmp")
+        try:
+            temporary.write_bytes(jpeg)
+            os.replace(temporary, path)
+        except OSError as error:
+            temporary.unlink(missing_ok=True)
+            return f"cannot save {path}: {error}"
+        return None
+
+    # ------------------------------------------------------------------ bookkeeping
+
+    def _bad(self, reason: str, detail: str) -> None:
+        count = self._stats.bad.get(reason, 0) + 1
+        self._stats.bad[reason] = count
+        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
+            logger.warning("bad message (%s, #%d): %s", reason, count, detail)
+
+    def _safe(self, reason: str, detail: str) -> str:
+        self._bad(reason, detail + " -> safe command")
+        self._stats.safe += 1
+        return protocol.SAFE_STEER_FRAME
+
+    def _ignore(self, reason: str, detail: str) -> None:
+        self._bad(reason, detail + " -> ignored")
+        self._stats.ignored += 1
+        return None
+
+
+def _bound_port(server: Server, requested: int) -> int:
+    for sock in server.sockets:
+        return int(sock.getsockname()[1])
+    return requested

@@ -1,0 +1,198 @@
+"""H.264 videos of driving: a folder of frames (as Udacity's video.py) or frames one at a time.
+
+Encoding uses the ffmpeg binary shipped with ``imageio-ffmpeg`` (libx264, yuv420p, mp4, the
+format every player accepts). Files are written under a temporary name and renamed when
+complete, so a video on disk is never half-written.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+logger = logging.getLogger("clonedrive.video")
+
+FRAME_SUFFIXES = (".jpg", ".jpeg", ".png")
+
+
+class VideoWriter:
+    """Append uint8 RGB frames ``(H, W, 3)`` one at a time; :meth:`close` finishes the mp4.
+
+    The first frame fixes the size; later frames must match it. H.264 with yuv420p needs even
+    sides: an odd width or height is stretched by ffmpeg's scaler to the next even number.
+    Use as a context manager: on an exception the partial file is removed.
+    """
+
+    def __init__(self, path: str | os.PathLike, fps: float = 60.0, *, quality: float = 7.0) -> None:
+        if not fps > 0:
+            raise ValueError(f"fps must be positive, got {fps}")
+        self.path = Path(path)
+        self.fps = float(fps)
+        self.quality = float(quality)
+        self.frames_written = 0
+        self.size: tuple[int, int] | None = None  # (width, height) in pixels
+        self._temporary = self.path.with_name(
+            f".{self.path.stem}.partial{self.path.suffix or '.mp4'}"
+        )
+        self._encoder = None
+        self._closed = False
+
+    def append(self, frame_rgb: np.ndarray) -> None:
+        if self._closed:
+            raise ValueError(f"{self.path}: the video is closed")
+        frame = np.asarray(frame_rgb)
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            raise ValueError(
+                f"expected a uint8 RGB frame (H, W, 3), got {frame.dtype} {frame.shape}"
+            )
+        height, width = frame.shape[:2]
+        if self._encoder is None:
+            self._start((width, height))
+        elif (width, height) != self.size:
+            raise ValueError(
+                f"frame {self.frames_written} is {width}x{height}, "
+                f"the video is {self.size[0]}x{self.size[1]}"
+            )
+        self._encoder.send(np.ascontiguousarray(frame))
+        self.frames_written += 1
+
+    def close(self) -> Path | None:
+        """Finish the file and return its path; with no frame added, write nothing, return None.
+
+        Safe to call twice and from ``finally`` blocks.
+        """
+        if self._closed:
+            return self.path if self.path.exists() and self.frames_written else None
+        self._closed = True
+        if self._encoder is None:
+            logger.warning("%s: no frames, no video written", self.path)
+            return None
+        try:
+            self._encoder.close()
+        except BaseException:
+            self._temporary.unlink(missing_ok=True)
+            raise
+        os.replace(self._temporary, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        """Stop encoding and remove the partial file."""
+        self._closed = True
+        if self._encoder is None:
+            return
+        try:
+            self._encoder.close()
+        except OSError as error:  # ffmpeg's own failure; the partial file goes anyway
+            logger.warning("%s: ffmpeg failed while aborting: %s", self.path, error)
+        finally:
+            self._temporary.unlink(missing_ok=True)
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, exc_type: object, exc: object, traceback: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    def _start(self, size: tuple[int, int]) -> None:
+        import imageio_ffmpeg
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.size = size
+        self._encoder = imageio_ffmpeg.write_frames(
+            str(self._temporary),
+            size,
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            fps=self.fps,
+            quality=self.quality,
+            codec="libx264",
+            macro_block_size=2,
+            output_params=["-movflags", "+faststart"],
+        )
+        self._encoder.send(None)  # start ffmpeg
+
+
+@dataclass
+class VideoSummary:
+    path: Path
+    frames: int
+    skipped: list[tuple[str, str]] = field(default_factory=list)  # (file name, reason)
+
+
+def frame_files(folder: str | os.PathLike) -> list[Path]:
+    """Image files in ``folder`` sorted by name (hidden files, e.g. partial writes, excluded)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"frame folder not found: {folder}")
+    return sorted(
+        path
+        for path in folder.iterdir()
+        if path.suffix.lower() in FRAME_SUFFIXES
+        and not path.name.startswith(".")
+        and path.is_file()
+    )
+
+
+def default_video_path(folder: str | os.PathLike) -> Path:
+    """``run1/`` -> ``run1.mp4`` beside it, as Udacity's video.py names it."""
+    folder = Path(folder).resolve()
+    return folder.with_name(folder.name + ".mp4")
+
+
+def encode_folder(
+    folder: str | os.PathLike,
+    fps: float = 60.0,
+    out: str | os.PathLike | None = None,
+    *,
+    progress: bool = False,
+) -> VideoSummary:
+    """Encode the frames of ``folder`` (sorted by name) into an mp4; skip and count bad frames.
+
+    A frame that does not decode, or whose size differs from the first good frame, is skipped
+    and reported in :attr:`VideoSummary.skipped`. Raises ``ValueError`` if no frame is usable.
+    """
+    import cv2
+    from tqdm import tqdm
+
+    files = frame_files(folder)
+    if not files:
+        raise ValueError(f"{folder}: no frames ({', '.join(FRAME_SUFFIXES)} files) to encode")
+    out_path = Path(out) if out is not None else default_video_path(folder)
+    summary = VideoSummary(path=out_path, frames=0)
+    writer = VideoWriter(out_path, fps)
+    try:
+        for path in tqdm(files, desc="video", unit="frame", disable=not progress):
+            bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if bgr is None:
+                summary.skipped.append((path.name, "does not decode"))
+                continue
+            height, width = bgr.shape[:2]
+            if writer.size is not None and writer.size != (width, height):
+                reason = f"size {width}x{height}, the video is {writer.size[0]}x{writer.size[1]}"
+                summary.skipped.append((path.name, reason))
+                continue
+            writer.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        if writer.frames_written == 0:
+            raise ValueError(f"{folder}: none of the {len(files)} frames could be decoded")
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    summary.frames = writer.frames_written
+    for name, reason in summary.skipped:
+        logger.warning("skipped frame %s: %s", name, reason)
+    return summary
+
+
+def frames_to_video(
+    folder: str | os.PathLike, fps: float = 60.0, out: str | os.PathLike | None = None
+) -> Path:
+    """Encode ``folder``'s frames (sorted by name) as H.264 yuv420p mp4; default ``FOLDER.mp4``."""
+    return encode_folder(folder, fps, out).path

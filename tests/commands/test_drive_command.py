@@ -1,0 +1,71 @@
+"""``clonedrive drive``: the drive.py drop-in, run as a real process."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from websockets.asyncio.client import connect
+
+from clonedrive.cli import main
+from clonedrive.drive import protocol
+from clonedrive.drivers.tiny_model import build_tiny_model
+
+FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
+
+
+def test_missing_model_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["drive", str(tmp_path / "nothing.keras"), "--port", "0"]) == 1
+    assert "nothing.keras" in capsys.readouterr().err
+
+
+def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["drive", str(tmp_path / "m.keras"), "--speed", "80"]) == 2
+    assert "--speed" in capsys.readouterr().err
+
+
+def test_serves_the_simulator_until_interrupted(tmp_path: Path) -> None:
+    model = tmp_path / "model.keras"
+    build_tiny_model().save(model)
+    frames = tmp_path / "run1"
+    jpeg = sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
+    command = [sys.executable, "-m", "clonedrive", "drive", str(model), str(frames)]
+    command += ["--port", "0", "--speed", "15", "--slow-in-curves"]
+    process = subprocess.Popen(
+        command, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"}
+    )
+    try:
+        port = None
+        for line in process.stderr:
+            found = re.search(r"listening on ws://127\.0\.0\.1:(\d+)/socket\.io/", line)
+            if found:
+                port = int(found[1])
+                break
+        assert port is not None, "the server never said where it listens"
+
+        async def drive() -> list[str]:
+            url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"
+            async with connect(url, compression=None) as ws:
+                replies = [await ws.recv(), await ws.recv()]
+                for _ in range(3):
+                    await ws.send(protocol.telemetry_frame(0.0, 0.0, 0.0, jpeg))
+                    replies.append(await asyncio.wait_for(ws.recv(), 30))
+                return replies
+
+        replies = asyncio.run(drive())
+    finally:
+        process.send_signal(signal.SIGINT)
+        _, rest = process.communicate(timeout=30)
+    assert process.returncode == 0, rest
+    assert replies[1] == "40"
+    for reply in replies[2:]:
+        name, args = protocol.decode_event(reply)
+        assert name == "steer" and set(args[0]) == {"steering_angle", "throttle"}
+    assert "3 steer" in rest
+    assert len(list(frames.glob("*.jpg"))) == 3

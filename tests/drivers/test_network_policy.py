@@ -1,0 +1,168 @@
+"""The network driver: PI speed control against hand computation, a real Keras model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.drivers.network import (
+    NetworkPolicy,
+    Policy,
+    SpeedController,
+    load_model,
+    load_policy,
+)
+from clonedrive.drivers.tiny_model import build_tiny_model
+
+
+def test_pi_matches_drive_py_by_hand() -> None:
+    controller = SpeedController(9.0)
+    # drive.py: e = set - speed; integral += e; throttle = 0.1 e + 0.002 integral
+    assert controller.update(0.0) == pytest.approx(0.1 * 9 + 0.002 * 9)  # 0.918
+    assert controller.update(4.0) == pytest.approx(0.1 * 5 + 0.002 * 14)  # 0.528
+    assert controller.update(10.0) == pytest.approx(0.1 * -1 + 0.002 * 13)  # -0.074
+    assert controller.integral_mph == pytest.approx(13.0)
+    controller.reset()
+    assert controller.update(9.0) == 0.0
+
+
+def test_pi_anti_windup() -> None:
+    controller = SpeedController(30.0)
+    # e = 30 -> 0.1 * 30 = 3 saturates: the error is not summed and the output is clipped.
+    for _ in range(100):
+        assert controller.update(0.0) == 1.0
+    assert controller.integral_mph == 0.0
+    # Reaching the set speed, the output is 0 at once: nothing was wound up.
+    assert controller.update(30.0) == 0.0
+    # Far over speed: saturated braking, again without winding up.
+    assert controller.update(50.0) == -1.0
+    assert controller.integral_mph == 0.0
+    # Near the set point it integrates as drive.py does.
+    assert controller.update(28.0) == pytest.approx(0.1 * 2 + 0.002 * 2)
+
+
+def test_pi_integrates_when_the_error_unwinds_saturation() -> None:
+    controller = SpeedController(9.0)
+    controller.integral_mph = 600.0  # 0.002 * 600 = 1.2: saturated high
+    # A negative error brings the output back inside: it is summed.
+    assert controller.update(19.0) == pytest.approx(0.1 * -10 + 0.002 * 590)
+    assert controller.integral_mph == pytest.approx(590.0)
+
+
+@pytest.fixture(scope="module")
+def tiny_model():
+    return build_tiny_model(seed=5)
+
+
+def frames(count: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.integers(0, 256, size=(count, 160, 320, 3), dtype=np.uint8)
+
+
+def test_policy_protocol_and_act(tiny_model) -> None:
+    policy = NetworkPolicy(tiny_model, set_speed_mph=9.0)
+    as_policy: Policy = policy  # NetworkPolicy satisfies the Policy protocol
+    assert callable(as_policy.reset) and callable(as_policy.act)
+    image = frames(1, 0)[0]
+    steering, throttle = policy.act(image, 0.0)
+    want = float(np.asarray(tiny_model.predict_on_batch(image[None].astype(np.float32)))[0, 0])
+    assert isinstance(steering, float) and isinstance(throttle, float)
+    assert steering == pytest.approx(want, abs=1e-6)
+    assert throttle == pytest.approx(0.918)
+    policy.reset()
+    assert policy.act(image, 0.0)[1] == pytest.approx(0.918)
+
+
+def test_predict_steering_is_batched_and_matches_act(tiny_model) -> None:
+    policy = NetworkPolicy(tiny_model, batch_size=3)
+    images = frames(7, 1)
+    batch = policy.predict_steering(images)
+    assert batch.shape == (7,) and batch.dtype == np.float32
+    single = [policy.act(image, 9.0)[0] for image in images]
+    np.testing.assert_allclose(batch, single, atol=1e-5)
+    assert policy.predict_steering(images[:0]).shape == (0,)
+
+
+def test_inputs_are_validated(tiny_model) -> None:
+    policy = NetworkPolicy(tiny_model)
+    with pytest.raises(ValueError, match="160, 320, 3"):
+        policy.act(np.zeros((160, 320, 3), dtype=np.float32), 0.0)
+    with pytest.raises(ValueError, match="160, 320, 3"):
+        policy.act(np.zeros((320, 160, 3), dtype=np.uint8), 0.0)
+    with pytest.raises(ValueError):
+        policy.predict_steering(np.zeros((160, 320, 3), dtype=np.uint8))
+
+
+def constant_model(value: float):
+    """A model whose steering is ``value`` for every image (to test clipping and speed)."""
+    import keras
+    from keras import layers
+
+    inputs = keras.Input(shape=(160, 320, 3))
+    x = layers.GlobalAveragePooling2D()(inputs)
+    outputs = layers.Dense(1, kernel_initializer="zeros", bias_initializer="zeros")(x)
+    model = keras.Model(inputs, outputs)
+    model.layers[-1].set_weights([np.zeros((3, 1), np.float32), np.array([value], np.float32)])
+    return model
+
+
+def test_steering_is_clipped() -> None:
+    image = frames(1, 2)[0]
+    assert NetworkPolicy(constant_model(3.0)).act(image, 9.0)[0] == 1.0
+    assert NetworkPolicy(constant_model(-2.0)).act(image, 9.0)[0] == -1.0
+
+
+def test_slow_in_curves_lowers_the_target_speed() -> None:
+    image = frames(1, 3)[0]
+    straight = NetworkPolicy(constant_model(0.0), 20.0, slow_in_curves=True)
+    bend = NetworkPolicy(constant_model(0.2), 20.0, slow_in_curves=True)
+    hairpin = NetworkPolicy(constant_model(-0.9), 20.0, slow_in_curves=True)
+    assert straight.target_speed_mph(0.0) == 20.0
+    assert bend.target_speed_mph(0.2) == pytest.approx(20.0 * 0.7)
+    assert hairpin.target_speed_mph(-0.9) == pytest.approx(20.0 * 0.4)
+    assert bend.target_speed_mph(0.2, set_speed_mph=10.0) == pytest.approx(10.0 * 0.7)
+    # At 14 mph: straight still accelerates, the bend holds (target 14), the hairpin brakes.
+    assert straight.act(image, 14.0)[1] == pytest.approx(0.1 * 6 + 0.002 * 6)
+    assert bend.act(image, 14.0)[1] == pytest.approx(0.0, abs=1e-6)
+    assert hairpin.act(image, 14.0)[1] == pytest.approx(0.1 * -6 + 0.002 * -6)
+    plain = NetworkPolicy(constant_model(-0.9), 20.0)
+    assert plain.target_speed_mph(-0.9) == 20.0
+
+
+@pytest.mark.parametrize("suffix", [".keras", ".h5"])
+def test_load_policy(tmp_path: Path, tiny_model, suffix: str) -> None:
+    path = tmp_path / f"model{suffix}"
+    tiny_model.save(path)
+    policy = load_policy(path, set_speed_mph=15.0, slow_in_curves=True)
+    assert policy.set_speed_mph == 15.0 and policy.slow_in_curves
+    images = frames(2, 4)
+    want = np.asarray(tiny_model.predict_on_batch(images.astype(np.float32)))[:, 0]
+    np.testing.assert_allclose(policy.predict_steering(images), want, atol=1e-6)
+
+
+def test_load_errors(tmp_path: Path) -> None:
+    import keras
+    from keras import layers
+
+    with pytest.raises(FileNotFoundError, match="missing.keras"):
+        load_model(tmp_path / "missing.keras")
+    (tmp_path / "model.txt").write_text("x")
+    with pytest.raises(ValueError, match=r"\.keras or \.h5"):
+        load_model(tmp_path / "model.txt")
+    (tmp_path / "broken.keras").write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="broken.keras"):
+        load_model(tmp_path / "broken.keras")
+    # Lambda layers can run arbitrary code: safe_mode refuses them.
+    inputs = keras.Input(shape=(160, 320, 3))
+    x = layers.Lambda(lambda t: t / 255.0)(inputs)
+    outputs = layers.Dense(1)(layers.GlobalAveragePooling2D()(x))
+    keras.Model(inputs, outputs).save(tmp_path / "lambda.keras")
+    with pytest.raises(ValueError, match="lambda.keras"):
+        load_model(tmp_path / "lambda.keras")
+    # The model must take the center camera.
+    small = keras.Input(shape=(66, 200, 3))
+    keras.Model(small, layers.Dense(1)(layers.Flatten()(small))).save(tmp_path / "nvidia.keras")
+    with pytest.raises(ValueError, match=r"\(66, 200, 3\)"):
+        load_model(tmp_path / "nvidia.keras")

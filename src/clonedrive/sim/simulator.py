@@ -165,6 +165,7 @@ class Simulator:
         start_s = float(options.get("s_m", 0.0))
         self._place(start_s, float(options.get("offset_m", 0.0)),
                     float(options.get("speed_mph", 0.0)), float(options.get("yaw_offset_rad", 0.0)))
+        self._steps = 0
         self._time_s = 0.0
         self._distance_m = 0.0
         self._laps = 0
@@ -210,7 +211,8 @@ class Simulator:
         self._distance_m += math.hypot(state.x_m - self._state.x_m, state.y_m - self._state.y_m)
         self._state = state
         self._controls = controls
-        self._time_s += 1.0 / self.config.control_hz
+        self._steps += 1
+        self._time_s = self._steps / self.config.control_hz  # exact, no drift from summing
         previous_s = self._obs.s_m
         obs = self._observe()
         info = self._update_progress(previous_s, obs)

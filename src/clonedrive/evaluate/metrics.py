@@ -1,0 +1,87 @@
+"""Closed-loop driving metrics (definitions in DESIGN.md), computed from a run's trace."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: NVIDIA (Bojarski et al. 2016): each intervention is charged six seconds.
+SECONDS_PER_INTERVENTION = 6.0
+
+
+def autonomy_pct(interventions: int, elapsed_s: float) -> float:
+    """``(1 - interventions * 6 s / elapsed s) * 100``, floored at 0."""
+    if elapsed_s <= 0:
+        return 0.0 if interventions else 100.0
+    return max(0.0, (1.0 - interventions * SECONDS_PER_INTERVENTION / elapsed_s) * 100.0)
+
+
+def smoothness(steering: np.ndarray, control_hz: float) -> float:
+    """Mean |change of steering| per second (steering in [-1, 1]); lower is smoother."""
+    steering = np.asarray(steering, dtype=float)
+    if len(steering) < 2:
+        return 0.0
+    return float(np.mean(np.abs(np.diff(steering))) * control_hz)
+
+
+@dataclass
+class OffRoadRecord:
+    """Where and when a tyre left the road, and the frame the network saw then."""
+
+    time_s: float
+    s_m: float
+    x_m: float
+    y_m: float
+    cte_m: float
+    lap: int
+    frame_png: str | None = None
+
+
+@dataclass
+class RunTrace:
+    """What a closed-loop run measured, one entry per control step."""
+
+    track: str
+    speed_mph: float
+    laps_target: int
+    control_hz: float
+    unseen: bool = False
+    time_s: list = field(default_factory=list)
+    x_m: list = field(default_factory=list)
+    y_m: list = field(default_factory=list)
+    cte_m: list = field(default_factory=list)
+    steering: list = field(default_factory=list)
+    speed: list = field(default_factory=list)
+    off_road: list[OffRoadRecord] = field(default_factory=list)
+    laps_completed: int = 0
+    distance_m: float = 0.0
+    timed_out: bool = False
+
+    def summary(self) -> dict:
+        """The figures written to eval.json for this run."""
+        cte = np.abs(np.asarray(self.cte_m, dtype=float))
+        elapsed = float(self.time_s[-1]) if self.time_s else 0.0
+        interventions = len(self.off_road)
+        return {
+            "track": self.track,
+            "speed_mph": self.speed_mph,
+            "unseen": self.unseen,
+            "laps_target": self.laps_target,
+            "laps_completed": self.laps_completed,
+            "interventions": interventions,
+            "autonomy_pct": round(autonomy_pct(interventions, elapsed), 2),
+            "mean_abs_cte_m": round(float(cte.mean()) if len(cte) else 0.0, 3),
+            "max_abs_cte_m": round(float(cte.max()) if len(cte) else 0.0, 3),
+            "smoothness": round(smoothness(self.steering, self.control_hz), 4),
+            "mean_speed_mph": round(float(np.mean(self.speed)) if self.speed else 0.0, 2),
+            "distance_m": round(self.distance_m, 1),
+            "elapsed_s": round(elapsed, 2),
+            "timed_out": self.timed_out,
+            "off_road_events": [
+                {"time_s": round(e.time_s, 2), "s_m": round(e.s_m, 1), "x_m": round(e.x_m, 1),
+                 "y_m": round(e.y_m, 1), "cte_m": round(e.cte_m, 2), "lap": e.lap,
+                 "frame_png": e.frame_png}
+                for e in self.off_road
+            ],
+        }

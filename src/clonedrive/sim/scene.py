@@ -1,0 +1,533 @@
+"""The Panda3D scene of a track: road, scenery, sky, fog and the car, and the engine that draws it.
+
+:class:`RenderEngine` owns one Panda3D ``GraphicsEngine`` and its pipe. Headless by default: the
+``p3tinydisplay`` software renderer drawing into offscreen buffers (no display, no GPU). Engine
+options are set when it is created, in a config page that is removed again on ``close()``;
+nothing is set at import and no ``ShowBase`` is used, so several engines can be created and
+closed one after the other in one process.
+
+:class:`Scene` builds the scene graph of a :class:`~clonedrive.world.track.Track` from
+:mod:`clonedrive.sim.scenery` (geometry derived from the track and its theme) and
+:mod:`clonedrive.sim.textures` (procedural textures), and owns its engine. Cameras are attached
+with :class:`clonedrive.sim.cameras.CameraRig`.
+
+How it stays fast in a software renderer:
+
+- lighting is baked into vertex colours (no per-vertex lighting at draw time);
+- static geometry is merged per 64 m cell (one node per cell, one Geom per material), under
+  256 m blocks, so view-frustum culling drops what is behind or beyond the far plane;
+- the far plane is at :data:`FAR_M`; the software renderer has no fog, so fog is drawn as a few
+  translucent cylinders around the car (exponential fog sampled at their radii, the last one
+  opaque to hide the far plane), drawn far to near after the opaque scene;
+- the sky is a vertex-coloured dome drawn last, only where nothing else was drawn;
+- textures are small, nearest-neighbour sampled with mipmaps.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from clonedrive.sim import textures
+from clonedrive.sim.meshes import BakedGeom, Mesh, grid_triangles
+from clonedrive.sim.randomization import (
+    Appearance,
+    RandomizationConfig,
+    default_appearance,
+    sample_appearance,
+)
+from clonedrive.sim.scenery import TREE_ATLAS_KINDS, Scenery, build_scenery
+from clonedrive.world.track import Track, load_track
+
+#: Camera clipping planes [m]. Nothing beyond FAR_M is drawn; fog reaches full at ~0.95 FAR_M.
+NEAR_M = 0.2
+FAR_M = 220.0
+#: Static geometry cell and block sizes [m] (culling granularity).
+CELL_M = 64.0
+BLOCK_CELLS = 4
+#: Materials drawn only within this distance [m] of the camera (per cell).
+LOD_DISTANCE_M = {"tree": 150.0, "barrier": 110.0, "sign": 110.0, "plain": 110.0}
+#: Translucent fog layer radii (fractions of FAR_M); the opaque horizon wall is at HORIZON_WALL.
+FOG_LAYERS = (0.3, 0.6)
+HORIZON_WALL = 0.93
+
+#: How far below the horizon fog reaches [deg]: deep valleys only in the mountains.
+_FOG_DEPRESSION_DEG = {"lake": 8.0, "mountain": 24.0}
+#: Sort order inside Panda3D's "fixed" bin (drawn after the opaque bin, in this order).
+_BIN_WATER = 0
+_BIN_FOG = 10
+_BIN_HOOD = 50
+
+_ENGINE_OPTIONS = {
+    "load-display": "p3tinydisplay",
+    "window-type": "offscreen",
+    "framebuffer-multisample": "0",
+    "multisamples": "0",
+    "sync-video": "0",
+    "audio-library-name": "null",
+    "td-ignore-mipmaps": "0",
+    "td-perspective-textures": "1",
+    "textures-power-2": "up",
+    "notify-level-display": "error",
+}
+
+
+class RenderEngine:
+    """One Panda3D graphics engine and pipe; headless (software, offscreen) by default.
+
+    ``window=True`` selects the OpenGL pipe (``pandagl``) for an interactive window; offscreen
+    buffers then come from the GPU. ``options`` adds or overrides PRC settings (strings).
+    """
+
+    def __init__(self, *, window: bool = False, options: dict[str, str] | None = None):
+        from panda3d.core import GraphicsEngine, GraphicsPipeSelection, load_prc_file_data
+
+        settings = dict(_ENGINE_OPTIONS)
+        if window:
+            settings["load-display"] = "pandagl"
+            settings["window-type"] = "onscreen"
+        settings.update(options or {})
+        text = "\n".join(f"{key} {value}" for key, value in settings.items())
+        self._page = load_prc_file_data("clonedrive-render-engine", text)
+        selection = GraphicsPipeSelection.get_global_ptr()
+        if window:
+            pipe = selection.make_module_pipe("pandagl")
+        else:
+            pipe = selection.make_pipe("TinyOffscreenGraphicsPipe", "p3tinydisplay")
+        if pipe is None or not pipe.is_valid():
+            self._unload()
+            kind = "OpenGL (pandagl)" if window else "software (p3tinydisplay)"
+            raise RuntimeError(f"could not open a Panda3D {kind} graphics pipe")
+        self.window = window
+        self.pipe = pipe
+        self.engine = GraphicsEngine(pipe)
+        self._outputs: list = []
+        self.closed = False
+
+    def make_buffer(self, name: str, width: int, height: int):
+        """An offscreen RGB buffer of ``width`` x ``height`` copied to RAM after each frame.
+
+        Returns ``(buffer, texture)``; read pixels with :func:`texture_rgb`.
+        """
+        from panda3d.core import (
+            FrameBufferProperties,
+            GraphicsOutput,
+            GraphicsPipe,
+            Texture,
+            WindowProperties,
+        )
+
+        self._check_open()
+        props = FrameBufferProperties()
+        props.set_rgb_color(True)
+        props.set_color_bits(24)
+        props.set_depth_bits(24)
+        buffer = self.engine.make_output(
+            self.pipe, name, 0, props, WindowProperties.size(width, height),
+            GraphicsPipe.BF_refuse_window,
+        )
+        if buffer is None:
+            raise RuntimeError(f"could not create a {width}x{height} offscreen buffer")
+        texture = Texture(f"{name}-colour")
+        buffer.add_render_texture(texture, GraphicsOutput.RTM_copy_ram)
+        self._outputs.append(buffer)
+        return buffer, texture
+
+    def remove(self, output) -> None:
+        if output in self._outputs:
+            self._outputs.remove(output)
+            self.engine.remove_window(output)
+
+    def render_frame(self) -> None:
+        self._check_open()
+        self.engine.render_frame()
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("the render engine is closed")
+
+    def _unload(self) -> None:
+        from panda3d.core import unload_prc_file
+
+        if self._page is not None:
+            unload_prc_file(self._page)
+            self._page = None
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.engine.remove_all_windows()
+        self._outputs.clear()
+        self.closed = True
+        self._unload()
+
+
+def texture_rgb(texture) -> np.ndarray:
+    """The RGB image (H, W, 3) uint8 of a render texture, top row first, C-contiguous."""
+    width, height = texture.get_x_size(), texture.get_y_size()
+    flat = np.frombuffer(texture.get_ram_image_as("RGB"), dtype=np.uint8)
+    return np.ascontiguousarray(flat.reshape(height, width, 3)[::-1])
+
+
+@dataclass
+class _Materials:
+    states: dict = field(default_factory=dict)
+    textures: dict = field(default_factory=dict)
+
+
+_HOOD_RGB = {"lake": (150.0, 146.0, 126.0), "mountain": (168.0, 170.0, 176.0)}
+
+
+class Scene:
+    """A track's Panda3D scene graph and the engine that renders it.
+
+    Parameters: ``track`` (a Track or a name for :func:`load_track`), ``scenery`` (False: road,
+    kerbs and a narrow verge only, quick to build), ``randomization`` (None: the theme's fixed
+    look; a :class:`RandomizationConfig`: a look drawn from ``seed``), ``seed`` (also seeds pixel
+    noise), ``window`` (use the OpenGL pipe; see :class:`RenderEngine`).
+
+    Attributes: ``root`` (the scene's top NodePath), ``car`` (the car's node: cameras and the
+    hood hang from it), ``appearance``, ``scenery``, ``engine``.
+    """
+
+    def __init__(
+        self,
+        track: Track | str,
+        *,
+        scenery: bool = True,
+        randomization: RandomizationConfig | None = None,
+        seed: int = 0,
+        window: bool = False,
+    ):
+        from panda3d.core import NodePath
+
+        self.track = load_track(track) if isinstance(track, str) else track
+        self.theme = self.track.theme
+        self.randomization = randomization
+        self.engine = RenderEngine(window=window)
+        self.closed = False
+        self._rigs: list = []
+        self._baked: list[BakedGeom] = []
+        try:
+            self.root = NodePath("scene")
+            self.static = self.root.attach_new_node("static")
+            self.follow = self.root.attach_new_node("follow-car")  # sky and fog: position only
+            self.car = self.root.attach_new_node("car")
+            self.scenery: Scenery = build_scenery(self.track, full=scenery)
+            self._materials = self._make_materials()
+            self._build_static()
+            self._build_hood()
+            self._atmosphere = None
+            self.appearance = default_appearance(self.theme)
+            self.randomize(seed)
+        except BaseException:
+            self.engine.close()
+            raise
+
+    # ------------------------------------------------------------------ appearance
+    def randomize(self, seed: int) -> Appearance:
+        """Draw a new look from ``seed`` (if randomisation is on) and re-seed pixel noise."""
+        self.seed = int(seed)
+        rng = np.random.default_rng([self.seed, 0x5CE7E])
+        if self.randomization is not None:
+            appearance = sample_appearance(self.theme, self.randomization, rng)
+        else:
+            appearance = default_appearance(self.theme)
+        self.noise_rng = np.random.default_rng([self.seed, 0x401CE])
+        self.apply_appearance(appearance)
+        return appearance
+
+    def apply_appearance(self, appearance: Appearance) -> None:
+        """Re-bake lighting and rebuild sky and fog for ``appearance``."""
+        self.appearance = appearance
+        for baked in self._baked:
+            baked.bake(appearance.lighting)
+        self._build_atmosphere(appearance)
+        tint = appearance.tint_rgb
+        if tint != (1.0, 1.0, 1.0):
+            self.root.set_color_scale(tint[0], tint[1], tint[2], 1.0)
+        else:
+            self.root.clear_color_scale()
+        for rig in self._rigs:
+            rig.on_appearance_changed()
+
+    @property
+    def clear_rgb(self) -> tuple[float, float, float]:
+        """Background colour (0-1): the sky's zenith colour (the horizon wall fades into it)."""
+        return tuple(c / 255.0 for c in self.appearance.sky_zenith_rgb)
+
+    @property
+    def horizon_rgb(self) -> tuple[float, float, float]:
+        """Fog colour (0-1)."""
+        return tuple(c / 255.0 for c in self.appearance.sky_horizon_rgb)
+
+    # ------------------------------------------------------------------ building
+    def _make_materials(self) -> _Materials:
+        from panda3d.core import (
+            CullBinAttrib,
+            CullFaceAttrib,
+            RenderState,
+            TextureAttrib,
+            TransparencyAttrib,
+        )
+
+        style = self.scenery.style
+        rng = np.random.default_rng(zlib.crc32(f"textures:{self.theme}".encode()))
+        width = float(np.median(self.track.width))
+        images = {
+            "road": textures.asphalt(rng, base_rgb=style.road_rgb, road_width_m=width,
+                                     edge_rgb=style.edge_line_rgb, centre_line=style.centre_line,
+                                     tyre_tracks=style.tyre_tracks),
+            "ground": textures.ground_detail(rng),
+            "rock": textures.rock(rng),
+            "water": textures.water(rng),
+            "kerb": textures.kerb(),
+            "barrier": textures.barrier(),
+            "sign": textures.chevron_sign(),
+            "tree": textures.tree_atlas(rng, TREE_ATLAS_KINDS),
+        }
+        materials = _Materials()
+        for name, image in images.items():
+            texture = textures.to_panda_texture(image, name, mipmaps=name != "tree")
+            materials.textures[name] = texture
+            state = RenderState.make(TextureAttrib.make(texture))
+            if name == "tree":
+                state = state.add_attrib(TransparencyAttrib.make(TransparencyAttrib.M_binary))
+                state = state.add_attrib(CullFaceAttrib.make(CullFaceAttrib.M_cull_none))
+            if name == "water":
+                state = state.add_attrib(CullBinAttrib.make("fixed", _BIN_WATER))
+            materials.states[name] = state
+        materials.states["plain"] = RenderState.make_empty()
+        return materials
+
+    def _build_static(self) -> None:
+        """Merge static meshes per cell (one Geom per material) under blocks, for culling.
+
+        Small things (trees, signs, posts, barriers) hang under a ``LODNode`` per cell and are
+        not drawn beyond :data:`LOD_DISTANCE_M` (they are a pixel or two there, and in fog).
+        """
+        from panda3d.core import GeomNode, LODNode, Point3
+
+        always: dict[tuple[int, int], list] = {}
+        near_only: dict[tuple[int, int], list] = {}
+        triangles = 0
+        for material, mesh in self.scenery.meshes.items():
+            state = self._materials.states[material]
+            for cell, part in _split_by_cell(mesh, CELL_M).items():
+                baked = BakedGeom(part, None, name=material)
+                self._baked.append(baked)
+                triangles += baked.triangle_count
+                if material in LOD_DISTANCE_M:
+                    near_only.setdefault(cell, []).append((material, baked.geom, state, part))
+                else:
+                    always.setdefault(cell, []).append((baked.geom, state))
+        blocks: dict[tuple[int, int], object] = {}
+        for cell in sorted(set(always) | set(near_only)):
+            block_key = (cell[0] // BLOCK_CELLS, cell[1] // BLOCK_CELLS)
+            if block_key not in blocks:
+                blocks[block_key] = self.static.attach_new_node(f"block{block_key}")
+            parent = blocks[block_key].attach_new_node(f"cell{cell}")
+            if cell in always:
+                geom_node = GeomNode("ground")
+                for geom, state in always[cell]:
+                    geom_node.add_geom(geom, state)
+                parent.attach_new_node(geom_node)
+            for material, geom, state, part in near_only.get(cell, []):
+                lod = LODNode(f"{material}-lod")
+                lod.set_center(Point3(*part.arrays()["xyz"].mean(axis=0)))
+                lod.add_switch(LOD_DISTANCE_M[material], 0.0)
+                geom_node = GeomNode(material)
+                geom_node.add_geom(geom, state)
+                parent.attach_new_node(lod).attach_new_node(geom_node)
+        self.cell_count = len(set(always) | set(near_only))
+        self.triangle_count = triangles
+
+    def _build_hood(self) -> None:
+        """The car's hood, drawn last over everything at the bottom of the frame.
+
+        It is a curtain 1.6 m ahead of the cameras (car frame: x right, y forward, z up, origin
+        on the road under the car's centre) whose top edge is shaped so that the centre camera
+        sees the Udacity car's hood: top at row ~138 of 160 in the middle, reaching the bottom
+        corners ~125 px either side. The side cameras see it shifted, as on the real car.
+        """
+        from panda3d.core import (
+            CullBinAttrib,
+            DepthTestAttrib,
+            DepthWriteAttrib,
+            GeomNode,
+            RenderState,
+        )
+
+        mesh = Mesh()
+        positions, albedo, triangles = _hood_geometry(np.asarray(_HOOD_RGB[self.theme]))
+        mesh.add(positions, (0.0, -1.0, 0.0), (0.0, 0.0), albedo, triangles)
+        self._hood = BakedGeom(mesh, None, name="hood")
+        node = GeomNode("hood")
+        state = RenderState.make(
+            CullBinAttrib.make("fixed", _BIN_HOOD),
+            DepthTestAttrib.make(DepthTestAttrib.M_none),
+            DepthWriteAttrib.make(DepthWriteAttrib.M_off),
+        )
+        node.add_geom(self._hood.geom, state)
+        self.hood = self.car.attach_new_node(node)
+        self.hood.set_two_sided(True)
+
+    def _build_atmosphere(self, appearance: Appearance) -> None:
+        """Sky gradient and fog: vertical cylinders around the car (see the module docstring).
+
+        The background is cleared to the zenith colour. The farthest cylinder (the "horizon
+        wall", at 0.93 x FAR_M) is opaque: horizon-coloured up to 4 deg above the car, then
+        graded to the zenith colour at 34 deg: the sky, and a curtain in front of the far plane.
+        Two translucent cylinders nearer in sample exponential fog (each adds the fog that lies
+        between it and the previous one) up to a few degrees above the horizon.
+        """
+        from panda3d.core import (
+            CullBinAttrib,
+            DepthWriteAttrib,
+            GeomNode,
+            RenderState,
+            TransparencyAttrib,
+        )
+
+        if self._atmosphere is not None:
+            self._atmosphere.remove_node()
+        self._atmosphere = self.follow.attach_new_node("atmosphere")
+        fog_rgb = np.asarray(appearance.sky_horizon_rgb)
+        segments = 48
+        azimuth = np.linspace(0, 2 * math.pi, segments + 1)
+
+        def cylinder(name, radius, heights, alphas, sort, *, opaque, colours=None):
+            rows = np.broadcast_to(fog_rgb if colours is None else colours, (len(heights), 3))
+            # The software rasteriser can leave hairline gaps between huge clipped triangles:
+            # opaque cylinders are built as separate columns that overlap their neighbours.
+            overlap = 0.004 if opaque else 0.0
+            columns = [azimuth] if not opaque else [
+                np.array([a0 - overlap, a1 + overlap])
+                for a0, a1 in zip(azimuth[:-1], azimuth[1:], strict=True)
+            ]
+            mesh = Mesh()
+            for column in columns:
+                h, az = np.meshgrid(np.asarray(heights) * radius, column, indexing="ij")
+                positions = np.stack([radius * np.cos(az), radius * np.sin(az), h], -1)
+                # rows go up, columns counter-clockwise: faces point out; flip to face in
+                mesh.add(positions.reshape(-1, 3), (0.0, 0.0, 1.0), (0.0, 0.0),
+                         np.repeat(rows, len(column), axis=0),
+                         grid_triangles(len(heights), len(column))[:, ::-1],
+                         alpha=np.repeat(np.asarray(alphas) * 255.0, len(column)))
+            attribs = [CullBinAttrib.make("fixed", sort)]
+            if not opaque:
+                attribs += [TransparencyAttrib.make(TransparencyAttrib.M_alpha),
+                            DepthWriteAttrib.make(DepthWriteAttrib.M_off)]
+            node = GeomNode(name)
+            node.add_geom(BakedGeom(mesh, None, name=name).geom, RenderState.make(*attribs))
+            self._atmosphere.attach_new_node(node)
+
+        wall = HORIZON_WALL * FAR_M
+        depression = _FOG_DEPRESSION_DEG[self.theme]
+        elevations = np.radians([-depression, 0.0, 4.0, 12.0, 22.0, 34.0])
+        sky = np.array([0.0, 0.0, 0.0, 0.45, 0.8, 1.0])[:, None]
+        colours = fog_rgb * (1 - sky) + np.asarray(appearance.sky_zenith_rgb) * sky
+        cylinder("horizon-wall", wall, np.tan(elevations), np.ones(len(elevations)), _BIN_FOG,
+                 opaque=True, colours=colours)
+        radii = np.asarray(FOG_LAYERS) * FAR_M
+        visibility = np.exp(-appearance.fog_density_per_m * radii)
+        previous = np.concatenate([[1.0], visibility[:-1]])
+        alphas = 1.0 - visibility / previous
+        for index in range(len(radii) - 1, -1, -1):  # far to near
+            if alphas[index] < 0.01:
+                continue
+            low = math.tan(math.radians(depression))
+            cylinder(f"fog{index}", radii[index], [-low, -0.5 * low, 0.0, 0.08, 0.28],
+                     [alphas[index]] * 4 + [0.0],
+                     _BIN_FOG + 2 + (len(radii) - index), opaque=False)
+
+    # ------------------------------------------------------------------ pose, lifetime
+    def set_car_pose(
+        self, x_m: float, y_m: float, z_m: float, yaw_rad: float, pitch_rad: float = 0.0,
+        roll_rad: float = 0.0,
+    ) -> None:
+        """Place the car: position of the road surface under its centre [m], yaw [rad, CCW from
+        +x], pitch [rad, + = nose up], roll [rad, + = right side down]."""
+        self.car.set_pos_hpr(
+            x_m, y_m, z_m, math.degrees(yaw_rad) - 90.0, math.degrees(pitch_rad),
+            math.degrees(roll_rad),
+        )
+        self.follow.set_pos(x_m, y_m, z_m)
+
+    def register_rig(self, rig) -> None:
+        self._rigs.append(rig)
+
+    def unregister_rig(self, rig) -> None:
+        if rig in self._rigs:
+            self._rigs.remove(rig)
+
+    def close(self) -> None:
+        """Release the engine, buffers and scene graph. Safe to call twice."""
+        if self.closed:
+            return
+        for rig in list(self._rigs):
+            rig.close()
+        self.engine.close()
+        self.root.remove_node()
+        self._baked.clear()
+        self._materials = _Materials()
+        self.closed = True
+
+    def __enter__(self) -> Scene:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+def _hood_geometry(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Hood curtain vertices (car frame), colours and triangles; see ``Scene._build_hood``."""
+    camera = np.array([0.0, 1.0, 1.2])  # the Udacity centre camera, car frame
+    pitch = math.radians(9.4)
+    tan_v = math.tan(math.radians(30.0))
+    tan_h = 2.0 * tan_v  # 320 x 160
+    ahead_m = 1.6
+    dx = np.linspace(-1.0, 1.0, 17) * 240.0  # pixels from the centre column (320 wide)
+    dy = 58.0 + 22.0 * np.clip((np.abs(dx) - 40.0) / 85.0, 0.0, None) ** 1.6  # rows below centre
+    right = dx / 160.0 * tan_h
+    up = -dy / 80.0 * tan_v
+    direction = np.stack(
+        [right, math.cos(pitch) + math.sin(pitch) * up, -math.sin(pitch) + math.cos(pitch) * up],
+        axis=1,
+    )
+    edge = camera + direction * (ahead_m / direction[:, 1:2])
+    # bands below the edge: light rim, shade, a dark crease, then the bright hood top
+    drop = np.array([0.0, 0.1, 0.16, 0.18, 0.2, 0.6])
+    shade = np.array([1.08, 1.0, 0.82, 0.42, 1.12, 1.18])
+    positions = np.repeat(edge[None], len(drop), axis=0)
+    positions[..., 2] -= drop[:, None]
+    side = 1.0 - 0.25 * (np.abs(dx) / 240.0) ** 2
+    albedo = rgb[None, None, :] * shade[:, None, None] * side[None, :, None]
+    triangles = grid_triangles(len(drop), len(dx))
+    return positions.reshape(-1, 3), albedo.reshape(-1, 3), triangles
+
+
+def _split_by_cell(mesh: Mesh, cell_m: float) -> dict[tuple[int, int], Mesh]:
+    """Split a world-space mesh into meshes per square cell (by triangle centroid)."""
+    data = mesh.arrays()
+    triangles = data["triangles"]
+    if len(triangles) == 0:
+        return {}
+    centroid = data["xyz"][triangles].mean(axis=1)[:, :2]
+    keys = np.floor(centroid / cell_m).astype(np.int64)
+    order = np.lexsort((keys[:, 1], keys[:, 0]))
+    keys, triangles = keys[order], triangles[order]
+    change = np.flatnonzero(np.any(np.diff(keys, axis=0) != 0, axis=1)) + 1
+    parts = {}
+    for start, end in zip(np.r_[0, change], np.r_[change, len(keys)], strict=True):
+        tris = triangles[start:end]
+        used, local = np.unique(tris, return_inverse=True)
+        part = Mesh()
+        part.add(data["xyz"][used], data["normal"][used], data["uv"][used],
+                 data["albedo"][used], local.reshape(-1, 3), sunlit=data["sunlit"][used],
+                 alpha=data["alpha"][used])
+        parts[(int(keys[start, 0]), int(keys[start, 1]))] = part
+    return parts

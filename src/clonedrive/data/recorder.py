@@ -1,0 +1,396 @@
+"""Record the expert's driving as a Udacity-format log: ``driving_log.csv`` + ``IMG/`` + config.
+
+``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertDriver` around a
+track in the simulator with its three cameras and writes one row per control step (15 Hz) in
+exactly the Udacity simulator's format (UDACITY.md), through
+:class:`~clonedrive.data.driving_log.DrivingLogWriter`:
+
+- ``IMG/center_|left_|right_YYYY_MM_DD_HH_MM_SS_mmm.jpg``: 320x160 RGB JPEGs (quality 75 by
+  default, as Unity's ``EncodeToJPG``). The timestamps follow **simulated** time from the
+  recording's start, so names are unique and 1/15 s apart however fast the recording runs. The
+  start is the wall-clock local time (whole milliseconds) when recording begins, or
+  ``start_time`` when given (reproducible names).
+- Each row: the three image paths (absolute by default, ``IMG/<name>`` with ``relative_paths``),
+  the expert's **clean** steering label (not the noisy steering it applied), the applied throttle
+  and brake in [0, 1], and the speed in mph at the moment the images were taken.
+- ``style="turns"`` writes only the rows in curves; the others are counted as skipped.
+- ``config.json``: the :class:`RecordConfig` plus the track's version, the clonedrive version
+  and a list of the recording sessions, written atomically.
+
+**Nothing is lost.** Images are JPEG-encoded and written by a background thread while the next
+frame renders; each image is written to a temporary name and renamed into place, and a row is
+appended (one ``write`` call) only once its three images are in place, in step order. A recorder
+killed at any moment therefore leaves a log whose every row's images exist and decode (at most a
+few orphan images or ``.tmp`` files, which a later append removes). Process death never loses
+data that was written, since it stays in the OS page cache; against power loss the CSV is
+``fsync``-ed every ``fsync_every_rows`` rows and at the end, and images are not fsynced one by
+one (that would halve the speed), so after a power cut the last rows may point to images the
+reader reports as missing; it skips and counts them.
+
+**An existing folder is appended to**, not overwritten: the new rows' timestamps continue after
+the last image already in the log (or at the current time, if later), so names stay unique and
+ordered, and ``config.json`` gains a session. Use a new folder for a separate data set.
+
+Recording stops after ``laps`` laps in the driving direction (or ``seconds`` of simulated
+driving, if given, whichever comes first), or earlier (with ``stopped="off_road"``) once the
+expert has left the road ``max_off_road_events`` times.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+
+from clonedrive.config import config_to_dict, write_json_atomic
+from clonedrive.data.driving_log import (
+    CAMERAS,
+    CSV_NAME,
+    IMAGE_FOLDER,
+    DrivingLogWriter,
+    image_name,
+    image_time,
+    read_driving_log,
+)
+from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+
+CONFIG_NAME = "config.json"
+HISTOGRAM_BINS = 11
+#: Steps queued for the writer thread at most (bounds memory; each holds three images).
+MAX_PENDING_ROWS = 16
+#: Suffix of an image being written (``IMG/.center_..._123.tmp.jpg``), renamed when complete.
+TEMP_SUFFIX = ".tmp.jpg"
+
+
+@dataclass(frozen=True)
+class RecordConfig:
+    """What to record. Saved as ``config.json`` next to the log."""
+
+    track: str = "lake"  #: built-in name, gen:<seed> or a track .json path
+    style: str = "center"  #: center, left, right, weave or turns (see drivers/expert.py)
+    laps: int = 1  #: laps to drive in the driving direction
+    seconds: float | None = None  #: also stop after this much simulated time [s] (None: no limit)
+    speed_mph: float = 15.0  #: set speed: a maximum, the expert slows for curves
+    reverse: bool = False  #: drive the track backwards
+    noise: float = 0.0  #: steering-noise std applied to the car; labels stay clean
+    seed: int = 0  #: seeds the noise, the weave phase and the scene
+    header: bool = False  #: write the header line (the simulator writes none)
+    relative_paths: bool = False  #: IMG/<name> instead of absolute paths
+    offset_fraction: float = 0.6  #: left/right: fraction of the usable half-width off centre
+    jpeg_quality: int = 75  #: JPEG quality 1-100
+    max_off_road_events: int = 3  #: stop early once the expert has left the road this often
+    scenery: bool = True  #: trees, rocks... (False: road and terrain only)
+    randomize: bool = False  #: domain randomisation of the scene's look
+    start_time: str | None = None  #: ISO time of the first image name; None = now (local time)
+    fsync_every_rows: int = 15  #: fsync the CSV this often (and at the end); 1 = every row
+
+    def __post_init__(self) -> None:
+        if self.style not in STYLES:
+            raise ValueError(f"style {self.style!r} is not one of {', '.join(STYLES)}")
+        if self.laps < 1:
+            raise ValueError(f"laps must be at least 1, got {self.laps}")
+        if not 0.0 < self.speed_mph <= 30.0:
+            raise ValueError(f"speed_mph must be in (0, 30] (the car's top speed), got "
+                             f"{self.speed_mph}")
+        if not 0.0 <= self.noise <= 1.0:
+            raise ValueError(f"noise must be in [0, 1] (steering units), got {self.noise}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in [1, 100], got {self.jpeg_quality}")
+        if self.seconds is not None and not self.seconds > 0:
+            raise ValueError(f"seconds must be positive, got {self.seconds}")
+        if self.max_off_road_events < 1:
+            raise ValueError("max_off_road_events must be at least 1")
+        if self.fsync_every_rows < 1:
+            raise ValueError("fsync_every_rows must be at least 1")
+        if self.start_time is not None:
+            datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
+
+    def expert_config(self) -> ExpertConfig:
+        return ExpertConfig(style=self.style, speed_mph=self.speed_mph, reverse=self.reverse,
+                            noise=self.noise, offset_fraction=self.offset_fraction)
+
+
+@dataclass
+class RecordSummary:
+    """What a recording produced."""
+
+    out_dir: str
+    rows: int  #: rows written by this recording
+    total_rows: int  #: rows in the log afterwards (more when appending)
+    off_road_events: int
+    laps: int  #: laps driven in the driving direction
+    clean_laps: int  #: of those, laps without an off-road event
+    sim_seconds: float  #: simulated time driven
+    wall_seconds: float
+    samples_per_s: float  #: rows written per wall-clock second
+    distance_m: float
+    skipped_samples: int  #: steps not recorded (``turns``: outside curves)
+    stopped: str  #: "laps", "seconds", "off_road", "time_limit" or "interrupted"
+    appended: bool  #: the folder already held a log
+    first_image: str | None
+    last_image: str | None
+    steering_histogram: dict = field(default_factory=dict)  #: {"edges": [...], "counts": [...]}
+    message: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool = True
+           ) -> RecordSummary:
+    """Drive the expert and record a Udacity-format log into ``out_dir`` (appending if one is
+    there). ``progress``: show a tqdm bar (stderr) by lap progress."""
+    from clonedrive import __version__
+    from clonedrive.sim.simulator import SimConfig, Simulator
+    from clonedrive.world.track import load_track
+
+    out = Path(out_dir).absolute()
+    track = load_track(config.track)
+    existing_rows, last_time = _existing_log(out)
+    _remove_temp_images(out)
+    start = _start_time(config, last_time)
+    session = {"started": start.isoformat(timespec="milliseconds"), "rows": None,
+               **config_to_dict(config)}
+    _write_config(out, config, track, __version__, session)
+
+    rng = np.random.default_rng(config.seed)
+    expert = ExpertDriver(track, config.expert_config(), rng)
+    sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize)
+    steering: list[float] = []
+    skipped = 0
+    first_name = last_name = None
+    stopped = "laps"
+    # Enough time for every lap at 2 m/s, so a stuck car cannot record forever.
+    time_limit_s = 60.0 + config.laps * track.length_m / 2.0
+    wall_start = time.perf_counter()
+    bar = _progress_bar(config.laps, progress)
+    with Simulator(track, sim_config) as sim, \
+            _RowSink(out, config, start) as sink:
+        obs, _ = sim.reset(seed=config.seed, options={"reverse": config.reverse})
+        expert.reset()
+        try:
+            while sim.laps_started < config.laps:
+                action = expert.act(obs)
+                if action.record:
+                    names = sink.submit(obs, action)
+                    steering.append(action.label_steering)
+                    first_name = first_name or names[0]
+                    last_name = names[0]
+                else:
+                    skipped += 1
+                obs, _ = sim.step(action.controls_applied)
+                if bar is not None:
+                    bar.update(sim.laps_started + obs.lap_progress - bar.n)
+                    bar.set_postfix(rows=len(steering), off_road=obs.off_road_events,
+                                    refresh=False)
+                if obs.off_road_events >= config.max_off_road_events:
+                    stopped = "off_road"
+                    break
+                if config.seconds is not None and obs.time_s >= config.seconds - 1e-9:
+                    stopped = "seconds"
+                    break
+                if obs.time_s >= time_limit_s:
+                    stopped = "time_limit"
+                    break
+        except KeyboardInterrupt:
+            stopped = "interrupted"
+        finally:
+            if bar is not None:
+                bar.close()
+        sink.close()
+        rows = sink.rows_written
+    wall = time.perf_counter() - wall_start
+
+    session["rows"] = rows
+    _write_config(out, config, track, __version__, session)
+    counts, edges = np.histogram(np.asarray(steering[:rows]), bins=HISTOGRAM_BINS,
+                                 range=(-1.0, 1.0))
+    messages = {
+        "laps": f"recorded {config.laps} lap(s)",
+        "seconds": f"recorded {config.seconds:g} s of driving" if config.seconds else "",
+        "off_road": f"stopped early: the expert left the road {obs.off_road_events} times "
+                    f"(limit {config.max_off_road_events}); try a lower --speed or --noise",
+        "time_limit": f"stopped early: {time_limit_s:.0f} s of driving did not finish "
+                      f"{config.laps} lap(s)",
+        "interrupted": "interrupted; every row written so far is complete",
+    }
+    return RecordSummary(
+        out_dir=str(out),
+        rows=rows,
+        total_rows=existing_rows + rows,
+        off_road_events=obs.off_road_events,
+        laps=min(sim.laps_started, config.laps),
+        clean_laps=obs.laps,
+        sim_seconds=obs.time_s,
+        wall_seconds=wall,
+        samples_per_s=rows / wall if wall > 0 else 0.0,
+        distance_m=obs.distance_m,
+        skipped_samples=skipped,
+        stopped=stopped,
+        appended=existing_rows > 0,
+        first_image=first_name,
+        last_image=last_name,
+        steering_histogram={"edges": [float(e) for e in edges],
+                            "counts": [int(c) for c in counts]},
+        message=messages[stopped],
+    )
+
+
+class _RowSink:
+    """Writes rows in step order, each only after its three images are in place.
+
+    One background thread owns the images and the CSV: for each submitted step, in order, it
+    JPEG-encodes and writes the three images (temp name, then rename), then appends the row. The
+    main thread meanwhile renders the next frame (Panda3D and OpenCV release the GIL).
+    ``submit`` blocks when ``MAX_PENDING_ROWS`` steps are waiting; ``close`` writes the rest.
+    """
+
+    def __init__(self, out: Path, config: RecordConfig, start: datetime) -> None:
+        self.image_dir = out / IMAGE_FOLDER
+        self.config = config
+        self.start = start
+        self.writer = DrivingLogWriter(out, header=config.header,
+                                       relative_paths=config.relative_paths, fsync=False)
+        self._sync_fd = os.open(self.writer.csv_path, os.O_RDONLY)
+        self._queue: queue.Queue = queue.Queue(maxsize=MAX_PENDING_ROWS)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._work, name="record-writer", daemon=True)
+        self._thread.start()
+
+    @property
+    def rows_written(self) -> int:
+        return self.writer.rows_written
+
+    def submit(self, obs, action) -> tuple[str, str, str]:
+        """Queue one step's images and row; returns the three image names."""
+        if self._error is not None:
+            raise RuntimeError(f"writing the log failed: {self._error}") from self._error
+        missing = [camera for camera in CAMERAS if camera not in obs.images]
+        if missing:
+            raise RuntimeError(f"the simulator rendered no {', '.join(missing)} image(s)")
+        names = tuple(image_name(camera, self.start, obs.time_s) for camera in CAMERAS)
+        images = tuple(obs.images[camera] for camera in CAMERAS)
+        controls = action.controls_applied
+        values = (action.label_steering, max(controls.throttle, 0.0), controls.brake,
+                  max(obs.speed_mph, 0.0))
+        self._queue.put((images, names, values))
+        return names
+
+    def _work(self) -> None:
+        import cv2
+
+        params = [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality]
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            if self._error is not None:
+                continue  # keep consuming so that submit never blocks forever
+            images, names, values = item
+            try:
+                paths = [self.image_dir / name for name in names]
+                for image, path in zip(images, paths, strict=True):
+                    _write_jpeg(image, path, params)
+                self.writer.append(*paths, *values)
+                if self.writer.rows_written % self.config.fsync_every_rows == 0:
+                    os.fsync(self._sync_fd)
+            except BaseException as error:  # handed to the main thread by submit/close
+                self._error = error
+
+    def close(self) -> None:
+        """Write every queued row, then sync and close the CSV. Raises a writing error."""
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        if self._sync_fd >= 0:
+            os.fsync(self._sync_fd)
+            os.close(self._sync_fd)
+            self._sync_fd = -1
+        self.writer.close()
+        if self._error is not None:
+            raise RuntimeError(f"writing the log failed: {self._error}") from self._error
+
+    def __enter__(self) -> _RowSink:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
+    """Write an RGB image as a JPEG atomically: encode to a temp name, then rename."""
+    import cv2
+
+    temp = path.with_name(f".{path.stem}{TEMP_SUFFIX}")
+    # OpenCV writes BGR: the reversed channel view is copied by the binding, not re-encoded.
+    if not cv2.imwrite(str(temp), image_rgb[:, :, ::-1], params):
+        raise RuntimeError(f"OpenCV could not write {temp}")
+    os.replace(temp, path)
+
+
+def _existing_log(out: Path) -> tuple[int, datetime | None]:
+    """(rows already in ``out``'s log, the latest image time among them)."""
+    if not (out / CSV_NAME).is_file():
+        return 0, None
+    log = read_driving_log(out, verify_images="none")
+    times = [image_time(row.center) for row in log.rows]
+    times = [moment for moment in times if moment is not None]
+    return log.total_rows, max(times) if times else None
+
+
+def _start_time(config: RecordConfig, last_time: datetime | None) -> datetime:
+    """The time of the first image: ``start_time`` or now (whole ms), and in any case after the
+    last image already in the folder."""
+    if config.start_time is not None:
+        start = datetime.fromisoformat(config.start_time).replace(tzinfo=None)
+    else:
+        start = datetime.now()
+    start = start.replace(microsecond=start.microsecond // 1000 * 1000)
+    if last_time is not None:
+        start = max(start, last_time + timedelta(milliseconds=math.ceil(1000 / 15)))
+    return start
+
+
+def _remove_temp_images(out: Path) -> None:
+    """Delete ``IMG/.*.tmp.jpg`` files a killed recorder left half-written."""
+    folder = out / IMAGE_FOLDER
+    if folder.is_dir():
+        for temp in folder.glob(f".*{TEMP_SUFFIX}"):
+            temp.unlink(missing_ok=True)
+
+
+def _write_config(out: Path, config: RecordConfig, track, version: str, session: dict) -> None:
+    """config.json: this recording's config, the track version, clonedrive version, and every
+    session recorded into the folder."""
+    path = out / CONFIG_NAME
+    sessions: list = []
+    if path.is_file():
+        try:
+            previous = json.loads(path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            previous = {}
+        if isinstance(previous, dict) and isinstance(previous.get("sessions"), list):
+            sessions = [item for item in previous["sessions"]
+                        if item.get("started") != session["started"]]
+    data = config_to_dict(config)
+    data.update(track_name=track.name, track_version=track.version,
+                track_length_m=round(track.length_m, 1), clonedrive_version=version,
+                sessions=[*sessions, session])
+    write_json_atomic(path, data)
+
+
+def _progress_bar(laps: int, enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=laps, desc="recording", unit="lap",
+                bar_format="{l_bar}{bar}| {n:.2f}/{total} laps [{elapsed}<{remaining}{postfix}]")

@@ -114,6 +114,19 @@ def test_augment_batch_is_seeded_and_leaves_its_input_alone() -> None:
     assert np.all(np.minimum(abs(first[1] - steering), abs(first[1] + steering)) <= bound)
 
 
+def test_mirror_flag_equals_augmenting_a_mirrored_copy() -> None:
+    """A recipe's flipped copy is stored unmirrored and mirrored inside the augmentation."""
+    frames = _frames(6)
+    steering = np.linspace(-0.3, 0.3, 6).astype(np.float32)  # labels of the mirrored pictures
+    mirror = np.array([True, False, True, True, False, False])
+    premirrored = frames.copy()
+    premirrored[mirror] = frames[mirror][:, :, ::-1]
+    expected = augment_batch(premirrored, steering, np.random.default_rng(8))
+    got = augment_batch(frames, steering, np.random.default_rng(8), mirror=mirror)
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])
+
+
 def test_augment_batch_with_nothing_enabled_is_identity() -> None:
     frames = _frames(3)
     steering = np.array([0.2, -0.1, 0.0], dtype=np.float32)

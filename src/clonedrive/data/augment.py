@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 #: Steering change per pixel of horizontal shift ([-1, 1] units per pixel).
@@ -57,11 +58,14 @@ def shift_and_flip(
     flip: np.ndarray,
     *,
     steering_per_px: float = STEERING_PER_PX,
+    mirror: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift frame ``i`` by ``dx_px[i]`` pixels right and ``dy_px[i]`` pixels down (edge
     pixels repeated into the gap), then mirror it if ``flip[i]``; labels follow (module doc).
 
-    One gather over the whole batch; returns new arrays.
+    ``mirror[i]`` means frame ``i`` is stored unmirrored but its label already belongs to
+    the mirrored picture (a recipe's flipped copy): it is mirrored first, label untouched.
+    Every output pixel is read once from ``images``; returns new arrays.
     """
     count, height, width = images.shape[:3]
     dx = np.asarray(dx_px, dtype=np.int64).reshape(count)
@@ -70,6 +74,9 @@ def shift_and_flip(
     columns = np.arange(width)[None, :]
     columns = np.where(flip[:, None], width - 1 - columns, columns)  # read mirrored
     columns = np.clip(columns - dx[:, None], 0, width - 1)  # (N, W)
+    if mirror is not None:
+        mirror = np.asarray(mirror, dtype=bool).reshape(count)
+        columns = np.where(mirror[:, None], width - 1 - columns, columns)
     rows = np.clip(np.arange(height)[None, :] - dy[:, None], 0, height - 1)  # (N, H)
     out = np.empty_like(images)
     for index in range(count):  # per image: two cheap takes beat one (N, H, W) gather
@@ -90,19 +97,33 @@ def shade(
 ) -> np.ndarray:
     """Scale frame ``i`` by ``brightness[i]``; if ``shadow[i]``, also by ``darkness[i]`` on
     one side of the line from (``top_x[i]``, top row) to (``bottom_x[i]``, bottom row): the
-    left side, or the right side if ``right_side[i]``. Returns a new uint8 array."""
+    left side, or the right side if ``right_side[i]``. Returns a new uint8 array.
+
+    A pixel value ``v`` becomes ``min(255, round(v * factor))``, through a 256-entry lookup
+    table per image (OpenCV ``LUT``), which is several times faster than float arithmetic.
+    """
     count, height, width = images.shape[:3]
-    factor = np.asarray(brightness, dtype=np.float32).reshape(count, 1, 1)
+    out = np.empty_like(images)
+    for index in range(count):
+        cv2.LUT(images[index], _scale_table(brightness[index]), dst=out[index])
+    shadowed = np.flatnonzero(np.asarray(shadow, dtype=bool))
+    if shadowed.size == 0:
+        return out
     fraction = np.linspace(0.0, 1.0, height, dtype=np.float32)[None, :]
-    boundary = top_x[:, None] + (bottom_x - top_x)[:, None] * fraction  # (N, H)
+    top_x = np.asarray(top_x, dtype=np.float32)[shadowed]
+    bottom_x = np.asarray(bottom_x, dtype=np.float32)[shadowed]
+    boundary = top_x[:, None] + (bottom_x - top_x)[:, None] * fraction  # (k, H)
     inside = np.arange(width, dtype=np.float32)[None, None, :] < boundary[:, :, None]
-    inside ^= np.asarray(right_side, dtype=bool)[:, None, None]
-    inside &= np.asarray(shadow, dtype=bool)[:, None, None]
-    factor = np.where(inside, factor * np.asarray(darkness, np.float32)[:, None, None], factor)
-    scaled = images.astype(np.float32)
-    scaled *= factor[..., None]
-    np.clip(scaled, 0.0, 255.0, out=scaled)
-    return np.rint(scaled, out=scaled).astype(np.uint8)
+    inside ^= np.asarray(right_side, dtype=bool)[shadowed][:, None, None]
+    for number, index in enumerate(shadowed):
+        dark = cv2.LUT(images[index], _scale_table(brightness[index] * darkness[index]))
+        np.copyto(out[index], dark, where=inside[number][:, :, None])
+    return out
+
+
+def _scale_table(factor: float) -> np.ndarray:
+    levels = np.arange(256, dtype=np.float32) * np.float32(factor)
+    return np.clip(np.rint(levels), 0, 255).astype(np.uint8)
 
 
 def augment_batch(
@@ -110,11 +131,14 @@ def augment_batch(
     steering: np.ndarray,
     rng: np.random.Generator,
     config: AugmentConfig | None = None,
+    *,
+    mirror: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Randomly shift, flip, brighten/darken and shadow a batch of uint8 RGB frames.
 
     Returns new ``(images uint8 (N, H, W, 3), steering float32 (N,))``; the inputs are not
-    modified. All random numbers come from ``rng``, drawn in a fixed order.
+    modified. All random numbers come from ``rng``, drawn in a fixed order. ``mirror``: see
+    :func:`shift_and_flip` (frames to mirror first, their labels already negated).
     """
     config = config or AugmentConfig()
     images = np.asarray(images)
@@ -131,6 +155,6 @@ def augment_batch(
     darkness = rng.uniform(config.shadow_darkness_min, config.shadow_darkness_max, size=count)
     right_side = rng.random(count) < 0.5
     shifted, labels = shift_and_flip(
-        images, steering, dx, dy, flip, steering_per_px=config.steering_per_px
+        images, steering, dx, dy, flip, steering_per_px=config.steering_per_px, mirror=mirror
     )
     return shade(shifted, brightness, shadow, top_x, bottom_x, darkness, right_side), labels

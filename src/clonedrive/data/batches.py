@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import cv2
 import keras
 import numpy as np
 
@@ -41,8 +42,6 @@ class ImageDecodeError(ValueError):
 def decode_rgb(data: bytes | np.ndarray, out: np.ndarray | None = None, *, name: str = "image"
                ) -> np.ndarray:
     """Decode JPEG/PNG bytes to a uint8 RGB array (OpenCV decodes to BGR; converted here)."""
-    import cv2
-
     buffer = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
     bgr = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
     if bgr is None:
@@ -212,12 +211,15 @@ class DrivingBatches(keras.utils.PyDataset):
         chosen = self.batch_indices(index)
         images = self.cache.get(self.samples.image_index[chosen])
         steering = self.samples.steering[chosen]
-        mirrored = self.samples.flip[chosen]
-        if mirrored.any():  # the recipe's flipped copies (labels are already negated)
-            images[mirrored] = images[mirrored][:, :, ::-1]
+        mirrored = self.samples.flip[chosen]  # the recipe's flipped copies, labels negated
         if self.augment is not None:
             rng = np.random.default_rng([self.seed, self.epoch, index])
-            images, steering = augment_batch(images, steering, rng, self.augment)
+            images, steering = augment_batch(
+                images, steering, rng, self.augment, mirror=mirrored
+            )
+        else:
+            for position in np.flatnonzero(mirrored):
+                images[position] = cv2.flip(images[position], 1)
         steering = np.asarray(steering, dtype=np.float32)
         if self.with_weights:
             return images, steering, self.samples.weight[chosen]

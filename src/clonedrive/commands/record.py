@@ -88,7 +88,8 @@ def format_summary(summary) -> str:
         f"laps: {summary.laps} ({summary.clean_laps} clean)   off-road events: "
         f"{summary.off_road_events}   distance: {summary.distance_m:.0f} m",
         f"time: {summary.sim_seconds:.1f} s driven in {summary.wall_seconds:.1f} s "
-        f"({summary.samples_per_s:.0f} samples/s)",
+        f"({summary.samples_per_s:.0f} samples/s) after {summary.setup_seconds:.1f} s of "
+        "scene setup",
     ]
     counts = summary.steering_histogram.get("counts", [])
     edges = summary.steering_histogram.get("edges", [])

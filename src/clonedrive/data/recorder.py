@@ -129,8 +129,9 @@ class RecordSummary:
     laps: int  #: laps driven in the driving direction
     clean_laps: int  #: of those, laps without an off-road event
     sim_seconds: float  #: simulated time driven
-    wall_seconds: float
-    samples_per_s: float  #: rows written per wall-clock second
+    wall_seconds: float  #: driving and writing, from the first step until every row is written
+    setup_seconds: float  #: building the scene before the first step
+    samples_per_s: float  #: rows written per wall-clock second of driving (setup excluded)
     distance_m: float
     skipped_samples: int  #: steps not recorded (``turns``: outside curves)
     stopped: str  #: "laps", "seconds", "off_road", "time_limit" or "interrupted"
@@ -170,12 +171,13 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
     stopped = "laps"
     # Enough time for every lap at 2 m/s, so a stuck car cannot record forever.
     time_limit_s = 60.0 + config.laps * track.length_m / 2.0
-    wall_start = time.perf_counter()
-    bar = _progress_bar(config.laps, progress)
+    setup_start = time.perf_counter()
     with Simulator(track, sim_config) as sim, \
             _RowSink(out, config, start) as sink:
         obs, _ = sim.reset(seed=config.seed, options={"reverse": config.reverse})
         expert.reset()
+        wall_start = time.perf_counter()
+        bar = _progress_bar(config.laps, progress)
         try:
             while sim.laps_started < config.laps:
                 action = expert.act(obs)
@@ -208,6 +210,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
         sink.close()
         rows = sink.rows_written
     wall = time.perf_counter() - wall_start
+    setup = wall_start - setup_start
 
     session["rows"] = rows
     _write_config(out, config, track, __version__, session)
@@ -231,6 +234,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
         clean_laps=obs.laps,
         sim_seconds=obs.time_s,
         wall_seconds=wall,
+        setup_seconds=setup,
         samples_per_s=rows / wall if wall > 0 else 0.0,
         distance_m=obs.distance_m,
         skipped_samples=skipped,

@@ -91,6 +91,7 @@ class RecordConfig:
     randomize: bool = False  #: domain randomisation of the scene's look
     start_time: str | None = None  #: ISO time of the first image name; None = now (local time)
     fsync_every_rows: int = 15  #: fsync the CSV this often (and at the end); 1 = every row
+    turn_curvature_per_m: float | None = None  #: turns style: record where |curvature| > this
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:
@@ -114,8 +115,11 @@ class RecordConfig:
             datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
 
     def expert_config(self) -> ExpertConfig:
+        options = {}
+        if self.turn_curvature_per_m is not None:
+            options["turn_curvature_per_m"] = self.turn_curvature_per_m
         return ExpertConfig(style=self.style, speed_mph=self.speed_mph, reverse=self.reverse,
-                            noise=self.noise, offset_fraction=self.offset_fraction)
+                            noise=self.noise, offset_fraction=self.offset_fraction, **options)
 
 
 @dataclass
@@ -155,12 +159,10 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
 
     out = Path(out_dir).absolute()
     track = load_track(config.track)
-    existing_rows, last_time = _existing_log(out)
-    _remove_temp_images(out)
-    start = _start_time(config, last_time)
+    existing_rows, start = prepare_log_folder(out, config.start_time)
     session = {"started": start.isoformat(timespec="milliseconds"), "rows": None,
                **config_to_dict(config)}
-    _write_config(out, config, track, __version__, session)
+    write_session_config(out, config, track, __version__, session)
 
     rng = np.random.default_rng(config.seed)
     expert = ExpertDriver(track, config.expert_config(), rng)
@@ -173,7 +175,9 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
     time_limit_s = 60.0 + config.laps * track.length_m / 2.0
     setup_start = time.perf_counter()
     with Simulator(track, sim_config) as sim, \
-            _RowSink(out, config, start) as sink:
+            RowSink(out, start, header=config.header, relative_paths=config.relative_paths,
+                    jpeg_quality=config.jpeg_quality,
+                    fsync_every_rows=config.fsync_every_rows) as sink:
         obs, _ = sim.reset(seed=config.seed, options={"reverse": config.reverse})
         expert.reset()
         wall_start = time.perf_counter()
@@ -182,7 +186,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
             while sim.laps_started < config.laps:
                 action = expert.act(obs)
                 if action.record:
-                    names = sink.submit(obs, action)
+                    names = sink.submit(obs, action.label_steering, action.controls_applied)
                     steering.append(action.label_steering)
                     first_name = first_name or names[0]
                     last_name = names[0]
@@ -213,7 +217,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
     setup = wall_start - setup_start
 
     session["rows"] = rows
-    _write_config(out, config, track, __version__, session)
+    write_session_config(out, config, track, __version__, session)
     counts, edges = np.histogram(np.asarray(steering[:rows]), bins=HISTOGRAM_BINS,
                                  range=(-1.0, 1.0))
     messages = {
@@ -248,21 +252,31 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
     )
 
 
-class _RowSink:
+class RowSink:
     """Writes rows in step order, each only after its three images are in place.
 
     One background thread owns the images and the CSV: for each submitted step, in order, it
     JPEG-encodes and writes the three images (temp name, then rename), then appends the row. The
     main thread meanwhile renders the next frame (Panda3D and OpenCV release the GIL).
     ``submit`` blocks when ``MAX_PENDING_ROWS`` steps are waiting; ``close`` writes the rest.
+    Image names follow ``start`` plus each observation's simulated ``time_s`` (see
+    :func:`prepare_log_folder` for a start that continues an existing log). Used by
+    :func:`record` and by manual driving (:mod:`clonedrive.sim.manual`).
     """
 
-    def __init__(self, out: Path, config: RecordConfig, start: datetime) -> None:
+    def __init__(self, out: Path, start: datetime, *, header: bool = False,
+                 relative_paths: bool = False, jpeg_quality: int = 75,
+                 fsync_every_rows: int = 15) -> None:
+        if not 1 <= jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be in [1, 100], got {jpeg_quality}")
+        if fsync_every_rows < 1:
+            raise ValueError("fsync_every_rows must be at least 1")
         self.image_dir = out / IMAGE_FOLDER
-        self.config = config
         self.start = start
-        self.writer = DrivingLogWriter(out, header=config.header,
-                                       relative_paths=config.relative_paths, fsync=False)
+        self.jpeg_quality = int(jpeg_quality)
+        self.fsync_every_rows = int(fsync_every_rows)
+        self.writer = DrivingLogWriter(out, header=header, relative_paths=relative_paths,
+                                       fsync=False)
         self._sync_fd = os.open(self.writer.csv_path, os.O_RDONLY)
         self._queue: queue.Queue = queue.Queue(maxsize=MAX_PENDING_ROWS)
         self._error: BaseException | None = None
@@ -273,8 +287,10 @@ class _RowSink:
     def rows_written(self) -> int:
         return self.writer.rows_written
 
-    def submit(self, obs, action) -> tuple[str, str, str]:
-        """Queue one step's images and row; returns the three image names."""
+    def submit(self, obs, steering: float, controls) -> tuple[str, str, str]:
+        """Queue one step's row: ``obs``'s three images and speed, the ``steering`` label and
+        the applied ``controls`` (throttle recorded clipped to >= 0, brake as applied).
+        Returns the three image names."""
         if self._error is not None:
             raise RuntimeError(f"writing the log failed: {self._error}") from self._error
         missing = [camera for camera in CAMERAS if camera not in obs.images]
@@ -282,8 +298,7 @@ class _RowSink:
             raise RuntimeError(f"the simulator rendered no {', '.join(missing)} image(s)")
         names = tuple(image_name(camera, self.start, obs.time_s) for camera in CAMERAS)
         images = tuple(obs.images[camera] for camera in CAMERAS)
-        controls = action.controls_applied
-        values = (action.label_steering, max(controls.throttle, 0.0), controls.brake,
+        values = (float(steering), max(controls.throttle, 0.0), controls.brake,
                   max(obs.speed_mph, 0.0))
         self._queue.put((images, names, values))
         return names
@@ -291,7 +306,7 @@ class _RowSink:
     def _work(self) -> None:
         import cv2
 
-        params = [cv2.IMWRITE_JPEG_QUALITY, self.config.jpeg_quality]
+        params = [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality]
         while True:
             item = self._queue.get()
             if item is None:
@@ -304,7 +319,7 @@ class _RowSink:
                 for image, path in zip(images, paths, strict=True):
                     _write_jpeg(image, path, params)
                 self.writer.append(*paths, *values)
-                if self.writer.rows_written % self.config.fsync_every_rows == 0:
+                if self.writer.rows_written % self.fsync_every_rows == 0:
                     os.fsync(self._sync_fd)
             except BaseException as error:  # handed to the main thread by submit/close
                 self._error = error
@@ -322,7 +337,7 @@ class _RowSink:
         if self._error is not None:
             raise RuntimeError(f"writing the log failed: {self._error}") from self._error
 
-    def __enter__(self) -> _RowSink:
+    def __enter__(self) -> RowSink:
         return self
 
     def __exit__(self, *exc_info: object) -> None:
@@ -340,6 +355,15 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
     os.replace(temp, path)
 
 
+def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, datetime]:
+    """Get ``out`` ready for a new recording session: remove half-written temp images a killed
+    recorder left, and choose the first image's time (``start_time``, ISO, or now) so that it
+    follows the last image already logged there. Returns (rows already in the log, start)."""
+    existing_rows, last_time = _existing_log(out)
+    _remove_temp_images(out)
+    return existing_rows, _start_time(start_time, last_time)
+
+
 def _existing_log(out: Path) -> tuple[int, datetime | None]:
     """(rows already in ``out``'s log, the latest image time among them)."""
     if not (out / CSV_NAME).is_file():
@@ -350,11 +374,11 @@ def _existing_log(out: Path) -> tuple[int, datetime | None]:
     return log.total_rows, max(times) if times else None
 
 
-def _start_time(config: RecordConfig, last_time: datetime | None) -> datetime:
+def _start_time(start_time: str | None, last_time: datetime | None) -> datetime:
     """The time of the first image: ``start_time`` or now (whole ms), and in any case after the
     last image already in the folder."""
-    if config.start_time is not None:
-        start = datetime.fromisoformat(config.start_time).replace(tzinfo=None)
+    if start_time is not None:
+        start = datetime.fromisoformat(start_time).replace(tzinfo=None)
     else:
         start = datetime.now()
     start = start.replace(microsecond=start.microsecond // 1000 * 1000)
@@ -371,9 +395,10 @@ def _remove_temp_images(out: Path) -> None:
             temp.unlink(missing_ok=True)
 
 
-def _write_config(out: Path, config: RecordConfig, track, version: str, session: dict) -> None:
-    """config.json: this recording's config, the track version, clonedrive version, and every
-    session recorded into the folder."""
+def write_session_config(out: Path, config, track, version: str, session: dict) -> None:
+    """config.json: this recording's config (a dataclass), the track version, clonedrive version,
+    and every session recorded into the folder (``session`` replaces an earlier entry with the
+    same ``started``)."""
     path = out / CONFIG_NAME
     sessions: list = []
     if path.is_file():

@@ -1,9 +1,17 @@
-"""Triangle meshes built with NumPy and turned into Panda3D Geoms, with baked lighting.
+"""Triangle meshes built with NumPy and turned into Panda3D Geoms, with baked light and haze.
 
-The software renderer is fastest without per-vertex lighting, so lighting is baked into vertex
-colours: ``colour = albedo x (ambient + sun x max(0, n . l) x sunlit)``. A :class:`BakedGeom`
-keeps its normals and albedo so the colours can be re-baked when the light changes (domain
-randomisation) without rebuilding the scene.
+The software renderer is fastest without per-vertex lighting and has no fog, so both are baked
+into vertex colours::
+
+    lit = albedo x (ambient x (s + (1 - s) x sunlit) + sun x max(0, n . l) x sunlit)
+    colour = lit x (1 - f) + fog x f,   f = 1 - exp(-fog_density x haze_m)
+
+``sunlit`` (0-1) is the share of direct sun a vertex gets (shadows), ``haze_m`` how far it is
+from the road [m]: the camera is always on the road, so that distance is a lower bound of the
+distance to the camera, and distant scenery fades into the fog colour (exponential fog by
+distance from the road; the far road itself is left clear). A :class:`BakedGeom` keeps normals,
+albedo and these attributes so its colours can be re-baked for a new look (domain randomisation)
+without rebuilding the scene.
 
 Shapes are in metres in whatever frame the caller uses; helpers here build boxes, crossed-quad
 sprites and generic indexed triangle sets.
@@ -20,20 +28,24 @@ VERTEX_DTYPE = np.dtype(
     {"names": ["xyz", "rgba", "uv"], "formats": [("<f4", 3), ("u1", 4), ("<f4", 2)],
      "offsets": [0, 12, 16], "itemsize": 24}
 )
+_FIELDS = ("xyz", "normal", "uv", "albedo", "sunlit", "haze", "alpha", "triangles")
 
 
 @dataclass(frozen=True)
 class Lighting:
-    """Light baked into vertex colours; colours are linear multipliers (1 = unchanged)."""
+    """Light and fog baked into vertex colours; light colours are multipliers (1 = unchanged)."""
 
     sun_direction: tuple[float, float, float]  #: unit vector pointing TO the sun (world)
     sun_rgb: tuple[float, float, float]
     ambient_rgb: tuple[float, float, float]
     shadow_ambient: float = 0.85  #: ambient kept in shadow (occlusion of sky light)
+    fog_rgb: tuple[float, float, float] = (180.0, 200.0, 220.0)  #: 0-255
+    fog_density_per_m: float = 0.0
 
 
 class Mesh:
-    """Accumulates triangles: positions, normals, uvs, albedo (0-255 RGB), sunlit (0-1), alpha."""
+    """Accumulates triangles with per-vertex positions, normals, uvs, albedo (0-255 RGB),
+    sunlit (0-1), haze distance [m] and alpha (0-255)."""
 
     def __init__(self) -> None:
         self._parts: list[tuple[np.ndarray, ...]] = []
@@ -50,43 +62,54 @@ class Mesh:
         albedo: np.ndarray,
         triangles: np.ndarray,
         *,
-        sunlit: np.ndarray | None = None,
+        sunlit: np.ndarray | float = 1.0,
+        haze_m: np.ndarray | float = 0.0,
         alpha: np.ndarray | float = 255.0,
     ) -> None:
         """Add vertices (n, 3) with triangles (m, 3) indexing them (0-based, local to this call).
 
-        ``albedo`` is (n, 3) or (3,); ``sunlit`` (n,) multiplies the direct sun (shadows).
+        ``albedo`` is (n, 3) or (3,); ``sunlit`` (n,) multiplies the direct sun (shadows);
+        ``haze_m`` (n,) is the distance from the road that sets how much fog the vertex gets.
         """
         positions = np.asarray(positions, dtype=float).reshape(-1, 3)
         count = len(positions)
         if count == 0:
             return
-        normals = np.broadcast_to(np.asarray(normals, dtype=float), (count, 3))
-        uvs = np.broadcast_to(np.asarray(uvs, dtype=float), (count, 2))
-        albedo = np.broadcast_to(np.asarray(albedo, dtype=float), (count, 3))
-        sunlit = np.ones(count) if sunlit is None else np.broadcast_to(sunlit, (count,))
-        alpha = np.broadcast_to(np.asarray(alpha, dtype=float), (count,))
+
+        def per_vertex(value, width=None):
+            shape = (count,) if width is None else (count, width)
+            return np.broadcast_to(np.asarray(value, dtype=float), shape)
+
         triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3) + self._count
-        self._parts.append((positions, normals, uvs, albedo, sunlit, alpha, triangles))
+        self._parts.append((
+            positions, per_vertex(normals, 3), per_vertex(uvs, 2), per_vertex(albedo, 3),
+            per_vertex(sunlit), per_vertex(haze_m), per_vertex(alpha), triangles,
+        ))
         self._count += count
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """All parts concatenated: xyz, normal, uv, albedo, sunlit, alpha, triangles."""
-        names = ("xyz", "normal", "uv", "albedo", "sunlit", "alpha", "triangles")
+        """All parts concatenated: xyz, normal, uv, albedo, sunlit, haze, alpha, triangles."""
         if not self._parts:
-            empty = {name: np.zeros((0, 3)) for name in names}
-            empty["triangles"] = np.zeros((0, 3), dtype=np.int64)
-            return empty
+            widths = {"xyz": 3, "normal": 3, "uv": 2, "albedo": 3, "triangles": 3}
+            return {
+                name: np.zeros((0, widths[name]) if name in widths else (0,),
+                               dtype=np.int64 if name == "triangles" else float)
+                for name in _FIELDS
+            }
         return {
             name: np.concatenate([part[i] for part in self._parts])
-            for i, name in enumerate(names)
+            for i, name in enumerate(_FIELDS)
         }
 
 
 def bake_colours(
-    normals: np.ndarray, albedo: np.ndarray, sunlit: np.ndarray, lighting: Lighting | None
+    normals: np.ndarray,
+    albedo: np.ndarray,
+    sunlit: np.ndarray,
+    haze_m: np.ndarray,
+    lighting: Lighting | None,
 ) -> np.ndarray:
-    """Lit RGB (n, 3) in 0-255 from albedo; ``lighting=None`` returns the albedo unchanged."""
+    """Lit and fogged RGB (n, 3) in 0-255; ``lighting=None`` returns the albedo unchanged."""
     if lighting is None:
         return albedo
     sun = np.asarray(lighting.sun_direction, dtype=float)
@@ -95,8 +118,11 @@ def bake_colours(
     ambient = np.asarray(lighting.ambient_rgb)[None, :] * (
         lighting.shadow_ambient + (1 - lighting.shadow_ambient) * sunlit[:, None]
     )
-    light = ambient + lambert[:, None] * np.asarray(lighting.sun_rgb)[None, :]
-    return albedo * light
+    lit = albedo * (ambient + lambert[:, None] * np.asarray(lighting.sun_rgb)[None, :])
+    if lighting.fog_density_per_m <= 0:
+        return lit
+    fog = 1.0 - np.exp(-lighting.fog_density_per_m * np.clip(haze_m, 0.0, None))[:, None]
+    return lit * (1.0 - fog) + np.asarray(lighting.fog_rgb)[None, :] * fog
 
 
 class BakedGeom:
@@ -109,6 +135,7 @@ class BakedGeom:
         self._normals = data["normal"]
         self._albedo = data["albedo"]
         self._sunlit = data["sunlit"]
+        self._haze = data["haze"]
         self._alpha = data["alpha"]
         count = len(data["xyz"])
         vertex_data = GeomVertexData(name, GeomVertexFormat.get_v3c4t2(), Geom.UH_static)
@@ -131,7 +158,7 @@ class BakedGeom:
         self.triangle_count = len(triangles)
 
     def bake(self, lighting: Lighting | None) -> None:
-        rgb = bake_colours(self._normals, self._albedo, self._sunlit, lighting)
+        rgb = bake_colours(self._normals, self._albedo, self._sunlit, self._haze, lighting)
         view = np.frombuffer(memoryview(self.vertex_data.modify_array(0)), dtype=VERTEX_DTYPE)
         view["rgba"][:, :3] = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
         view["rgba"][:, 3] = np.clip(np.rint(self._alpha), 0, 255).astype(np.uint8)

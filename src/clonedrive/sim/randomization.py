@@ -50,10 +50,9 @@ class RandomizationConfig:
 class Appearance:
     """One concrete look of a scene."""
 
-    lighting: Lighting
+    lighting: Lighting  #: sun, ambient light and fog (fog colour = the horizon colour)
     sky_zenith_rgb: tuple[float, float, float]  #: 0-255
-    sky_horizon_rgb: tuple[float, float, float]  #: 0-255; also the fog colour
-    fog_density_per_m: float  #: exponential fog: visibility exp(-density x distance)
+    sky_horizon_rgb: tuple[float, float, float]  #: 0-255
     tint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
     camera_height_offset_m: float = 0.0
     pixel_noise_std: float = 0.0
@@ -78,10 +77,10 @@ def default_appearance(theme: str) -> Appearance:
     """The fixed look of a theme (no randomisation)."""
     (elevation, azimuth), sun, ambient, zenith, horizon, fog = _THEME_LOOK[theme]
     return Appearance(
-        lighting=Lighting(_sun_vector(elevation, azimuth), sun, ambient),
+        lighting=Lighting(_sun_vector(elevation, azimuth), sun, ambient, fog_rgb=horizon,
+                          fog_density_per_m=fog),
         sky_zenith_rgb=zenith,
         sky_horizon_rgb=horizon,
-        fog_density_per_m=fog,
     )
 
 
@@ -111,11 +110,13 @@ def sample_appearance(
     horizon = np.clip(np.asarray(base.sky_horizon_rgb) * sky_scale * (1 + 0.4 * (colour - 1)),
                       0, 255)
     tint = 1.0 + rng.uniform(-config.tint, config.tint, 3)
+    horizon = tuple(float(v) for v in horizon)
+    fog = base.lighting.fog_density_per_m * draw(config.fog_density_scale)
     return Appearance(
-        lighting=Lighting(_sun_vector(elevation, azimuth), tuple(sun), tuple(ambient)),
+        lighting=Lighting(_sun_vector(elevation, azimuth), tuple(sun), tuple(ambient),
+                          fog_rgb=horizon, fog_density_per_m=fog),
         sky_zenith_rgb=tuple(float(v) for v in zenith),
-        sky_horizon_rgb=tuple(float(v) for v in horizon),
-        fog_density_per_m=base.fog_density_per_m * draw(config.fog_density_scale),
+        sky_horizon_rgb=horizon,
         tint_rgb=tuple(float(v) for v in tint),
         camera_height_offset_m=float(rng.uniform(-config.camera_height_m,
                                                  config.camera_height_m)),

@@ -16,10 +16,9 @@ How it stays fast in a software renderer:
 - lighting is baked into vertex colours (no per-vertex lighting at draw time);
 - static geometry is merged per 64 m cell (one node per cell, one Geom per material), under
   256 m blocks, so view-frustum culling drops what is behind or beyond the far plane;
-- the far plane is at :data:`FAR_M`; the software renderer has no fog, so fog is drawn as a few
-  translucent cylinders around the car (exponential fog sampled at their radii, the last one
-  opaque to hide the far plane), drawn far to near after the opaque scene;
-- the sky is a vertex-coloured dome drawn last, only where nothing else was drawn;
+- the software renderer has no fog: exponential fog by distance from the road is baked into
+  vertex colours with the lighting (the camera is always on the road); the sky is an opaque
+  vertex-coloured cylinder at ~0.93 :data:`FAR_M` that also hides the far plane;
 - textures are small, nearest-neighbour sampled with mipmaps.
 """
 
@@ -42,23 +41,22 @@ from clonedrive.sim.randomization import (
 from clonedrive.sim.scenery import TREE_ATLAS_KINDS, Scenery, build_scenery
 from clonedrive.world.track import Track, load_track
 
-#: Camera clipping planes [m]. Nothing beyond FAR_M is drawn; fog reaches full at ~0.95 FAR_M.
+#: Camera clipping planes [m]. Nothing beyond FAR_M is drawn; the sky cylinder is just inside.
 NEAR_M = 0.2
 FAR_M = 220.0
 #: Static geometry cell and block sizes [m] (culling granularity).
-CELL_M = 64.0
+CELL_M = 96.0
 BLOCK_CELLS = 4
 #: Materials drawn only within this distance [m] of the camera (per cell).
 LOD_DISTANCE_M = {"tree": 150.0, "barrier": 110.0, "sign": 110.0, "plain": 110.0}
-#: Translucent fog layer radii (fractions of FAR_M); the opaque horizon wall is at HORIZON_WALL.
-FOG_LAYERS = (0.3, 0.6)
+#: The sky cylinder's radius (fraction of FAR_M).
 HORIZON_WALL = 0.93
 
-#: How far below the horizon fog reaches [deg]: deep valleys only in the mountains.
-_FOG_DEPRESSION_DEG = {"lake": 8.0, "mountain": 24.0}
+#: How far below the horizon the sky cylinder reaches [deg]: deep valleys in the mountains.
+_SKY_DEPRESSION_DEG = {"lake": 4.0, "mountain": 10.0}
 #: Sort order inside Panda3D's "fixed" bin (drawn after the opaque bin, in this order).
 _BIN_WATER = 0
-_BIN_FOG = 10
+_BIN_SKY = 10
 _BIN_HOOD = 50
 
 _ENGINE_OPTIONS = {
@@ -241,7 +239,7 @@ class Scene:
         return appearance
 
     def apply_appearance(self, appearance: Appearance) -> None:
-        """Re-bake lighting and rebuild sky and fog for ``appearance``."""
+        """Re-bake lighting and fog into the vertex colours and rebuild the sky."""
         self.appearance = appearance
         for baked in self._baked:
             baked.bake(appearance.lighting)
@@ -335,12 +333,17 @@ class Scene:
                 for geom, state in always[cell]:
                     geom_node.add_geom(geom, state)
                 parent.attach_new_node(geom_node)
+            groups: dict[float, list] = {}
             for material, geom, state, part in near_only.get(cell, []):
-                lod = LODNode(f"{material}-lod")
-                lod.set_center(Point3(*part.arrays()["xyz"].mean(axis=0)))
-                lod.add_switch(LOD_DISTANCE_M[material], 0.0)
-                geom_node = GeomNode(material)
-                geom_node.add_geom(geom, state)
+                groups.setdefault(LOD_DISTANCE_M[material], []).append((geom, state, part))
+            for distance, members in groups.items():
+                lod = LODNode(f"near-{distance:.0f}m")
+                centre = np.concatenate([part.arrays()["xyz"] for _, _, part in members])
+                lod.set_center(Point3(*centre.mean(axis=0)))
+                lod.add_switch(distance, 0.0)
+                geom_node = GeomNode(f"near-{distance:.0f}m")
+                for geom, state, _ in members:
+                    geom_node.add_geom(geom, state)
                 parent.attach_new_node(lod).attach_new_node(geom_node)
         self.cell_count = len(set(always) | set(near_only))
         self.triangle_count = triangles
@@ -376,73 +379,38 @@ class Scene:
         self.hood.set_two_sided(True)
 
     def _build_atmosphere(self, appearance: Appearance) -> None:
-        """Sky gradient and fog: vertical cylinders around the car (see the module docstring).
-
-        The background is cleared to the zenith colour. The farthest cylinder (the "horizon
-        wall", at 0.93 x FAR_M) is opaque: horizon-coloured up to 4 deg above the car, then
-        graded to the zenith colour at 34 deg: the sky, and a curtain in front of the far plane.
-        Two translucent cylinders nearer in sample exponential fog (each adds the fog that lies
-        between it and the previous one) up to a few degrees above the horizon.
+        """The sky: an opaque vertical cylinder around the car (the "horizon wall", at
+        ``HORIZON_WALL x FAR_M``), horizon-coloured up to 4 deg above the car, graded to the
+        zenith colour at 34 deg; above it the background is cleared to the zenith colour. It
+        also hides the far plane. Fog is baked into vertex colours (see meshes.py).
         """
-        from panda3d.core import (
-            CullBinAttrib,
-            DepthWriteAttrib,
-            GeomNode,
-            RenderState,
-            TransparencyAttrib,
-        )
+        from panda3d.core import CullBinAttrib, GeomNode, RenderState
 
         if self._atmosphere is not None:
             self._atmosphere.remove_node()
-        self._atmosphere = self.follow.attach_new_node("atmosphere")
-        fog_rgb = np.asarray(appearance.sky_horizon_rgb)
-        segments = 48
+        radius = HORIZON_WALL * FAR_M
+        depression = _SKY_DEPRESSION_DEG[self.theme]
+        heights = radius * np.tan(np.radians([-depression, 0.0, 4.0, 12.0, 22.0, 34.0]))
+        blend = np.array([0.0, 0.0, 0.0, 0.45, 0.8, 1.0])[:, None]
+        colours = (np.asarray(appearance.sky_horizon_rgb) * (1 - blend)
+                   + np.asarray(appearance.sky_zenith_rgb) * blend)
+        # The software rasteriser can leave hairline gaps between huge clipped triangles, so
+        # the cylinder is built as separate columns that overlap their neighbours a little.
+        segments, overlap = 48, 0.004
         azimuth = np.linspace(0, 2 * math.pi, segments + 1)
-
-        def cylinder(name, radius, heights, alphas, sort, *, opaque, colours=None):
-            rows = np.broadcast_to(fog_rgb if colours is None else colours, (len(heights), 3))
-            # The software rasteriser can leave hairline gaps between huge clipped triangles:
-            # opaque cylinders are built as separate columns that overlap their neighbours.
-            overlap = 0.004 if opaque else 0.0
-            columns = [azimuth] if not opaque else [
-                np.array([a0 - overlap, a1 + overlap])
-                for a0, a1 in zip(azimuth[:-1], azimuth[1:], strict=True)
-            ]
-            mesh = Mesh()
-            for column in columns:
-                h, az = np.meshgrid(np.asarray(heights) * radius, column, indexing="ij")
-                positions = np.stack([radius * np.cos(az), radius * np.sin(az), h], -1)
-                # rows go up, columns counter-clockwise: faces point out; flip to face in
-                mesh.add(positions.reshape(-1, 3), (0.0, 0.0, 1.0), (0.0, 0.0),
-                         np.repeat(rows, len(column), axis=0),
-                         grid_triangles(len(heights), len(column))[:, ::-1],
-                         alpha=np.repeat(np.asarray(alphas) * 255.0, len(column)))
-            attribs = [CullBinAttrib.make("fixed", sort)]
-            if not opaque:
-                attribs += [TransparencyAttrib.make(TransparencyAttrib.M_alpha),
-                            DepthWriteAttrib.make(DepthWriteAttrib.M_off)]
-            node = GeomNode(name)
-            node.add_geom(BakedGeom(mesh, None, name=name).geom, RenderState.make(*attribs))
-            self._atmosphere.attach_new_node(node)
-
-        wall = HORIZON_WALL * FAR_M
-        depression = _FOG_DEPRESSION_DEG[self.theme]
-        elevations = np.radians([-depression, 0.0, 4.0, 12.0, 22.0, 34.0])
-        sky = np.array([0.0, 0.0, 0.0, 0.45, 0.8, 1.0])[:, None]
-        colours = fog_rgb * (1 - sky) + np.asarray(appearance.sky_zenith_rgb) * sky
-        cylinder("horizon-wall", wall, np.tan(elevations), np.ones(len(elevations)), _BIN_FOG,
-                 opaque=True, colours=colours)
-        radii = np.asarray(FOG_LAYERS) * FAR_M
-        visibility = np.exp(-appearance.fog_density_per_m * radii)
-        previous = np.concatenate([[1.0], visibility[:-1]])
-        alphas = 1.0 - visibility / previous
-        for index in range(len(radii) - 1, -1, -1):  # far to near
-            if alphas[index] < 0.01:
-                continue
-            low = math.tan(math.radians(depression))
-            cylinder(f"fog{index}", radii[index], [-low, -0.5 * low, 0.0, 0.08, 0.28],
-                     [alphas[index]] * 4 + [0.0],
-                     _BIN_FOG + 2 + (len(radii) - index), opaque=False)
+        mesh = Mesh()
+        for a0, a1 in zip(azimuth[:-1], azimuth[1:], strict=True):
+            column = np.array([a0 - overlap, a1 + overlap])
+            h, az = np.meshgrid(heights, column, indexing="ij")
+            positions = np.stack([radius * np.cos(az), radius * np.sin(az), h], -1)
+            # rows go up, columns counter-clockwise: faces point out; flip to face in
+            mesh.add(positions.reshape(-1, 3), (0.0, 0.0, 1.0), (0.0, 0.0),
+                     np.repeat(colours, 2, axis=0),
+                     grid_triangles(len(heights), 2)[:, ::-1])
+        node = GeomNode("sky")
+        node.add_geom(BakedGeom(mesh, None, name="sky").geom,
+                      RenderState.make(CullBinAttrib.make("fixed", _BIN_SKY)))
+        self._atmosphere = self.follow.attach_new_node(node)
 
     # ------------------------------------------------------------------ pose, lifetime
     def set_car_pose(
@@ -528,6 +496,6 @@ def _split_by_cell(mesh: Mesh, cell_m: float) -> dict[tuple[int, int], Mesh]:
         part = Mesh()
         part.add(data["xyz"][used], data["normal"][used], data["uv"][used],
                  data["albedo"][used], local.reshape(-1, 3), sunlit=data["sunlit"][used],
-                 alpha=data["alpha"][used])
+                 haze_m=data["haze"][used], alpha=data["alpha"][used])
         parts[(int(keys[start, 0]), int(keys[start, 1]))] = part
     return parts

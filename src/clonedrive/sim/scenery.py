@@ -50,8 +50,9 @@ ROAD_STEP_M = 1.5
 #: Road mesh stations: spacing from the chord error allowed on curves, within these bounds [m].
 ROAD_MESH_STEP_M = (1.5, 5.0)
 ROAD_CHORD_ERROR_M = 0.04
-#: Road mesh cross-section (fractions of the half width).
-ROAD_ACROSS = np.array([-1.0, -0.5, 0.0, 0.5, 1.0])
+#: Road mesh cross-section (fractions of the half width): the road is level across, the edge
+#: lines are in the texture and shadows are separate patches, so the edges are enough.
+ROAD_ACROSS = np.array([-1.0, 1.0])
 KERB_WIDTH_M = 0.6
 KERB_HEIGHT_M = 0.05
 #: Terrain below the road level at the road edge [m] (the road sits on a slight bank).
@@ -60,8 +61,8 @@ VERGE_DROP_M = 0.1
 SCENERY_RADIUS_M = 240.0
 #: Terrain rings: distance beyond the road edge [m] and spacing along the road [m].
 RING_OFFSETS_M = (-0.6, 0.7, 2.5, 5.0, 9.0, 15.0, 24.0, 36.0, 52.0, 72.0)
-RING_SPACING_M = (4.0, 3.0, 3.0, 4.0, 5.0, 7.0, 9.0, 11.0, 13.0, 15.0)
-GRID_SPACING_M = 16.0
+RING_SPACING_M = (4.0, 3.0, 3.0, 4.0, 5.0, 7.0, 10.0, 14.0, 18.0, 22.0)
+GRID_SPACING_M = 20.0
 #: Triangles steeper than this [deg] use the rock material.
 ROCK_SLOPE_DEG = 38.0
 
@@ -580,7 +581,7 @@ class _Builder:
             used, local = np.unique(tris, return_inverse=True)
             self.mesh(material).add(
                 positions[used], normals[used], uv[used], colours[used],
-                local.reshape(-1, 3), sunlit=sunlit[used]
+                local.reshape(-1, 3), sunlit=sunlit[used], haze_m=np.clip(beyond[used], 0, None)
             )
         self.counts["terrain_triangles"] = len(triangles)
         self.terrain = (positions, triangles, normals, proj, beyond)
@@ -632,7 +633,10 @@ class _Builder:
         flat = np.column_stack([xy, np.full(len(xy), self.water_level)])
         quad = np.array([[0, 1, 2], [0, 2, 3]])
         tris = (quad[None] + 4 * np.arange(len(keys))[:, None, None]).reshape(-1, 3)
-        self.mesh("water").add(flat, (0.0, 0.0, 1.0), xy / 9.0, (255.0, 255.0, 255.0), tris)
+        proj = self.track.project(xy)
+        haze = np.clip(np.abs(proj.cte_m) - proj.half_width_m, 0.0, None)
+        self.mesh("water").add(flat, (0.0, 0.0, 1.0), xy / 9.0, (255.0, 255.0, 255.0), tris,
+                               haze_m=haze)
         self.counts["water_squares"] = len(keys)
 
     # ------------------------------------------------------------ objects
@@ -685,7 +689,8 @@ class _Builder:
         positions_t, normals_t, uv, tris = crossed_quads(base, heights, widths, angle, uv_rect)
         tint = rng.uniform(0.8, 1.1, len(sites))
         albedo = np.repeat(np.outer(tint, (255.0, 255.0, 255.0)), 8, axis=0)
-        self.mesh("tree").add(positions_t, normals_t, uv, albedo, tris)
+        self.mesh("tree").add(positions_t, normals_t, uv, albedo, tris,
+                              haze_m=np.repeat(edge, 8))
         self.counts["trees"] = len(sites)
         # shadows of the trees right by the road fall on it: darker verge under them
         self.tree_sites = np.column_stack([sites, heights])
@@ -705,15 +710,18 @@ class _Builder:
             keep = z > self.water_level + 0.3
             xy, z = xy[keep], z[keep]
         sizes = rng.uniform(1.2, 4.0, len(xy))
+        proj = self.track.project(xy)
+        distances = np.clip(np.abs(proj.cte_m) - proj.half_width_m, 0.0, None)
         mesh = self.mesh("rock")
         unit, unit_tris = _rock_shape()
-        for (x, y), h, size in zip(xy, z, sizes, strict=True):
+        for (x, y), h, size, haze in zip(xy, z, sizes, distances, strict=True):
             scale = size * rng.uniform(0.7, 1.3, 3) * (1.0, 1.0, 0.6)
             positions = unit * scale + (x, y, h - 0.2 * size)
             normals = vertex_normals(positions, unit_tris)
             uv = np.column_stack([(positions[:, 0] + positions[:, 1]) / 4.0,
                                   positions[:, 2] / 4.0])
-            mesh.add(positions, normals, uv, np.asarray(self.style.rock_rgb) * 0.9, unit_tris)
+            mesh.add(positions, normals, uv, np.asarray(self.style.rock_rgb) * 0.9, unit_tris,
+                     haze_m=haze)
         self.counts["boulders"] = len(xy)
 
     def build_barriers(self) -> None:

@@ -14,12 +14,17 @@ with :class:`clonedrive.sim.cameras.CameraRig`.
 How it stays fast in a software renderer:
 
 - lighting is baked into vertex colours (no per-vertex lighting at draw time);
-- static geometry is merged per 64 m cell (one node per cell, one Geom per material), under
-  256 m blocks, so view-frustum culling drops what is behind or beyond the far plane;
+- static geometry is merged per 96 m cell (one node per cell, one Geom per material), under
+  384 m blocks, so view-frustum culling drops what is behind or beyond the far plane; trees
+  and small objects are not drawn beyond :data:`LOD_DISTANCE_M`;
 - the software renderer has no fog: exponential fog by distance from the road is baked into
   vertex colours with the lighting (the camera is always on the road); the sky is an opaque
   vertex-coloured cylinder at ~0.93 :data:`FAR_M` that also hides the far plane;
-- textures are small, nearest-neighbour sampled with mipmaps.
+- textures are small, nearest-neighbour sampled with mipmaps (the software renderer ignores
+  bilinear filtering: measured identical output).
+
+Measured with ``benchmarks/render.py`` (3 cameras, 320x160, full scenery): lake ~970 and
+mountain ~770 camera frames per CPU second on the 2-core development machine.
 """
 
 from __future__ import annotations

@@ -71,9 +71,24 @@ def _layers(model: keras.Model) -> list[tuple[str, str, tuple]]:
     ]
 
 
+def _channels_first(sequence: list[tuple[str, str, tuple]], after: str) -> list:
+    """The channels-last layer list as the default build has it: a Permute after ``after``,
+    then (C, H, W) shapes up to Flatten."""
+    result, permuted = [], False
+    for name, kind, shape in sequence:
+        if permuted and len(shape) == 3:
+            shape = (shape[2], shape[0], shape[1])
+        result.append((name, kind, shape))
+        if name == after:
+            result.append(("channels_first", "Permute", (shape[2], shape[0], shape[1])))
+            permuted = True
+    return result
+
+
 def test_seed_is_exactly_the_writeups_network() -> None:
+    assert _layers(build_model("seed", data_format="channels_last")) == SEED_LAYERS
     model = build_model("seed")
-    assert _layers(model) == SEED_LAYERS
+    assert _layers(model) == _channels_first(SEED_LAYERS, after="normalise")
     assert model.count_params() == SEED_PARAMS == 3_386_695
     crop = model.get_layer("crop")
     assert crop.cropping == ((80, 25), (0, 0))
@@ -103,8 +118,9 @@ def test_seed_dropout_is_optional() -> None:
 
 
 def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
+    assert _layers(build_model("pilotnet", data_format="channels_last")) == PILOTNET_LAYERS
     model = build_model("pilotnet")
-    assert _layers(model) == PILOTNET_LAYERS
+    assert _layers(model) == _channels_first(PILOTNET_LAYERS, after="unit_range")
     assert model.count_params() == PILOTNET_PARAMS
     yuv = model.get_layer("rgb_to_yuv")
     assert not yuv.trainable
@@ -114,7 +130,7 @@ def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
     frames = np.zeros((3, 160, 320, 3), dtype=np.float32)
     frames[0] = 255.0
     frames[2, ..., 0] = 255.0
-    out = np.asarray(probe.predict(frames, verbose=0))[:, 30, 100]
+    out = np.asarray(probe.predict(frames, verbose=0))[:, :, 30, 100]  # (N, C, H, W)
     np.testing.assert_allclose(out[0], [1.0, 0.0, 0.0], atol=1e-4)
     np.testing.assert_allclose(out[1], [-1.0, 0.0, 0.0], atol=1e-4)
     np.testing.assert_allclose(out[2, 2], 1.0, atol=1e-4)
@@ -123,14 +139,34 @@ def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
 def test_fast_is_small() -> None:
     model = build_model("fast")
     assert model.count_params() < 100_000
-    assert [type(layer).__name__ for layer in model.layers[:4]] == [
-        "InputLayer", "Cropping2D", "AveragePooling2D", "Rescaling"
+    assert [type(layer).__name__ for layer in model.layers[:5]] == [
+        "InputLayer", "Cropping2D", "AveragePooling2D", "Rescaling", "Permute"
     ]
 
 
 def test_unknown_model_name_is_an_error() -> None:
     with pytest.raises(ValueError, match="unknown model 'resnet'.*seed, pilotnet, fast"):
         build_model("resnet")
+    with pytest.raises(ValueError, match="data_format 'nhwc'"):
+        build_model("seed", data_format="nhwc")
+
+
+def test_channel_orders_compute_the_same_function() -> None:
+    """Same weights (Dense 100's input rows reordered as Flatten lists them) -> same output."""
+    last = build_model("seed", seed=2, data_format="channels_last")
+    first = build_model("seed", seed=2)
+    assert first.count_params() == last.count_params()
+    for name in ("conv1", "conv2", "conv3", "conv4", "dense2", "dense3", "steering"):
+        for a, b in zip(first.get_layer(name).get_weights(), last.get_layer(name).get_weights(),
+                        strict=True):
+            np.testing.assert_array_equal(a, b)  # same seeds, same shapes
+    kernel, bias = last.get_layer("dense1").get_weights()
+    reordered = kernel.reshape(7, 73, 64, 100).transpose(2, 0, 1, 3).reshape(32704, 100)
+    first.get_layer("dense1").set_weights([reordered, bias])
+    np.testing.assert_allclose(
+        np.asarray(first.predict(FRAMES, verbose=0)), np.asarray(last.predict(FRAMES, verbose=0)),
+        rtol=1e-4, atol=1e-5,
+    )
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES)

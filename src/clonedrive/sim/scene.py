@@ -82,7 +82,9 @@ class RenderEngine:
     """One Panda3D graphics engine and pipe; headless (software, offscreen) by default.
 
     ``window=True`` selects the OpenGL pipe (``pandagl``) for an interactive window; offscreen
-    buffers then come from the GPU. ``options`` adds or overrides PRC settings (strings).
+    buffers then come from the GPU. ``options`` adds or overrides PRC settings (strings); with
+    ``window=True``, ``{"load-display": "p3tinydisplay"}`` gives the software renderer's window
+    (for displays without OpenGL).
     """
 
     def __init__(self, *, window: bool = False, options: dict[str, str] | None = None):
@@ -97,12 +99,13 @@ class RenderEngine:
         self._page = load_prc_file_data("clonedrive-render-engine", text)
         selection = GraphicsPipeSelection.get_global_ptr()
         if window:
-            pipe = selection.make_module_pipe("pandagl")
+            pipe = selection.make_module_pipe(settings["load-display"])
         else:
             pipe = selection.make_pipe("TinyOffscreenGraphicsPipe", "p3tinydisplay")
         if pipe is None or not pipe.is_valid():
             self._unload()
-            kind = "OpenGL (pandagl)" if window else "software (p3tinydisplay)"
+            kind = f"window ({settings['load-display']})" if window else \
+                "software (p3tinydisplay)"
             raise RuntimeError(f"could not open a Panda3D {kind} graphics pipe")
         self.window = window
         self.pipe = pipe

@@ -1,0 +1,85 @@
+"""Closed-loop throughput (rendering included) and drive-server latency.
+
+- Control steps per second of `clonedrive evaluate` with the `fast` model on the lake track, full
+  scenery, one run at a time and 8 runs in lock-step (frames batched through the network).
+  Target: >= 150 steps/s (10x real time at 15 Hz).
+- Drive server round trip per telemetry message (decode + predict + reply) with the `seed`
+  model over a real socket: median and p99.
+
+Run: python benchmarks/evaluate.py [MODEL.keras]   (default: an untrained `fast` network; the
+weights do not change the cost, only where the car goes)
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def closed_loop_steps_per_s(policy, batch: int, seconds: float) -> tuple[float, int]:
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
+
+    # `batch` runs of the same track at slightly different set speeds, driven in lock-step.
+    speeds = tuple(20.0 + 0.5 * i for i in range(batch))
+    config = EvalConfig(tracks=("lake",), speeds_mph=speeds, laps=1, batch=batch,
+                        max_seconds=seconds)
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        report = evaluate(policy, config, out, progress=False)
+        wall = time.perf_counter() - start
+    steps = sum(round(run["elapsed_s"] * 15) for run in report["runs"])
+    return steps / wall, steps
+
+
+def main() -> None:
+    import numpy as np
+
+    from clonedrive.drivers.network import NetworkPolicy, load_model
+    from clonedrive.model.architectures import build_model
+
+    model = load_model(sys.argv[1]) if len(sys.argv) > 1 else build_model("fast")
+    policy = NetworkPolicy(model, set_speed_mph=20.0)
+    policy.predict_steering(np.zeros((8, 160, 320, 3), np.uint8))  # warm up
+    single, single_steps = closed_loop_steps_per_s(policy, 1, 40.0)
+    batched, batched_steps = closed_loop_steps_per_s(policy, 8, 20.0)
+    print("closed loop, lake, fast model, full scenery (includes scene build and map plots):")
+    print(f"  1 run:            {single:7.1f} steps/s ({single_steps} steps)")
+    print(f"  8 runs lock-step: {batched:7.1f} steps/s ({batched_steps} steps)")
+
+    from server_latency import round_trips, sample_jpeg
+
+    from clonedrive.drive import protocol
+    from clonedrive.drive.server import DriveServer
+
+    seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=9.0)
+    jpeg = sample_jpeg()
+    server = DriveServer(seed_policy, port=0, status_interval_s=0)
+    port = server.start()
+    try:
+        frame = protocol.telemetry_frame(0.0, 0.0, 5.0, jpeg)
+        trips = asyncio.run(round_trips(port, frame, 20, 300))
+    finally:
+        server.stop()
+    trips_ms = sorted(t * 1e3 for t in trips)
+    median = statistics.median(trips_ms)
+    p99 = trips_ms[min(len(trips_ms) - 1, int(round(0.99 * (len(trips_ms) - 1))))]
+    print(f"drive server, seed model, {len(trips)} messages: median {median:.2f} ms, "
+          f"p99 {p99:.2f} ms")
+    steps = max(single, batched)
+    print(f"target >= 150 steps/s: {'met' if steps >= 150 else 'NOT met'} ({steps:.0f})")
+    print(json.dumps({"steps_per_s": round(steps, 1),
+                      "steps_per_s_single": round(single, 1),
+                      "steps_per_s_batched8": round(batched, 1),
+                      "server_latency_ms_median": round(median, 2),
+                      "server_latency_ms_p99": round(p99, 2)}))
+
+
+if __name__ == "__main__":
+    main()

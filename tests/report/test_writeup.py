@@ -1,0 +1,227 @@
+"""The generated write-up on a real (tiny) run folder: an expert recording and a real Udacity
+recording, a model trained on them for one epoch, a closed-loop evaluation with video."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.cli import main
+from clonedrive.report.writeup import (
+    SECTION_TITLES,
+    _read_stills_in_order,
+    read_stills,
+    write_report,
+)
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
+SUBSECTIONS = ("Camera views", "Augmentation", "Speed control", "Track maps",
+               "Stills from the videos", "Failure analysis")
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    from clonedrive.data.recorder import RecordConfig, record
+    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
+    from clonedrive.model.train import TrainConfig, train
+
+    run = tmp_path_factory.mktemp("run")
+    record(RecordConfig(track="lake", style="left", seconds=3.0, scenery=False,
+                        start_time="2026-01-02T03:04:05"), run / "data" / "lake_left",
+           progress=False)
+    shutil.copytree(FIXTURES / "lake_posix_mixed_columns", run / "data" / "udacity_lake")
+    train(TrainConfig(model="fast", epochs=1, batch_size=64, export_h5=False),
+          [run / "data" / "lake_left", run / "data" / "udacity_lake"], run / "train",
+          progress=False)
+    # The tiny network cannot drive: within 6 s it leaves the road (failure analysis).
+    evaluate(NetworkPolicy(build_tiny_model(0), set_speed_mph=20.0),
+             EvalConfig(tracks=("lake",), speeds_mph=(20.0,), laps=1, scenery=False,
+                        max_seconds=6.0, video=True), run / "eval", progress=False)
+    (run / "demo.json").write_text(json.dumps({
+        "config": {"quick": True, "epochs": 1},
+        "stages": {"record": {"seconds": 1.5, "rows": 115}, "train": {"seconds": 9.0}},
+    }), encoding="utf-8")
+    return run
+
+
+@pytest.fixture(scope="module")
+def report(run_dir: Path, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    result = write_report(run_dir, out)
+    return result, out, result.markdown_path.read_text(encoding="utf-8")
+
+
+def _section(markdown: str, title: str) -> str:
+    start = markdown.index(f"## {title}\n")
+    following = markdown.find("\n## ", start + 1)
+    return markdown[start: following if following > 0 else None]
+
+
+def _table_rows(text: str) -> list[list[str]]:
+    """Cells of the first Markdown table in ``text`` (header and rule excluded)."""
+    lines = [line for line in text.splitlines() if line.startswith("|")]
+    return [[cell.strip().strip("*") for cell in line.strip("|").split(" | ")]
+            for line in lines[2:]]
+
+
+def test_markdown_has_every_section_and_no_skip_notes(report) -> None:
+    result, _, markdown = report
+    for title in SECTION_TITLES.values():
+        assert f"\n## {title}\n" in markdown
+    for title in SUBSECTIONS:
+        assert f"\n### {title}\n" in markdown
+    assert result.notes == []
+    assert "could not be generated" not in markdown
+
+
+def test_data_table_joins_recorder_config_recipe_and_row_counts(report, run_dir) -> None:
+    from clonedrive.data.driving_log import read_driving_log
+
+    _, _, markdown = report
+    rows = {row[0]: row for row in _table_rows(_section(markdown, SECTION_TITLES["data"]))}
+    left = read_driving_log(run_dir / "data" / "lake_left")
+    assert rows["lake_left"][1:4] == ["lake", "left", "forward"]
+    assert rows["lake_left"][6] == f"{len(left.rows)} / {left.total_rows}"
+    assert rows["lake_left"][7] == "center + left/right (±0.2)"
+    assert rows["udacity_lake"][1] == "–"  # a Udacity recording has no recorder config
+    assert rows["udacity_lake"][6] == "70 / 70"
+    assert rows["total"][6] == f"{len(left.rows) + 70} / {left.total_rows + 70}"
+
+
+def test_layer_table_lists_the_models_layers_and_parameters(report, run_dir) -> None:
+    import keras
+
+    _, _, markdown = report
+    model = keras.saving.load_model(run_dir / "train" / "model.keras", safe_mode=True,
+                                    compile=False)
+    rows = _table_rows(_section(markdown, SECTION_TITLES["network"]))
+    assert [row[0] for row in rows[:-1]] == [layer.name for layer in model.layers]
+    assert [row[1] for row in rows[:-1]] == [type(layer).__name__ for layer in model.layers]
+    assert [int(row[3].replace(",", "")) for row in rows[:-1]] == [
+        layer.count_params() for layer in model.layers]
+    assert rows[-1][0] == "total"
+    assert int(rows[-1][3].replace(",", "")) == model.count_params()
+    assert rows[0][2] == "160 × 320 × 3"
+
+
+def test_training_section_names_the_split_and_its_caveat(report) -> None:
+    _, _, markdown = report
+    training = _section(markdown, SECTION_TITLES["training"])
+    assert "**Split used: random**" in training
+    assert "flatters the validation loss" in training
+    epochs = [row for row in _table_rows(training) if row[0] == "1"]
+    assert len(epochs) == 1 and epochs[0][-1] == "best"
+    assert "report/loss.png" in training
+
+
+def test_results_match_eval_json_and_show_each_failure(report, run_dir) -> None:
+    _, out, markdown = report
+    evaluation = json.loads((run_dir / "eval" / "eval.json").read_text())
+    (run,) = evaluation["runs"]
+    results = _section(markdown, SECTION_TITLES["results"])
+    first = _table_rows(results)[0]
+    assert first[0] == "lake" and first[2].startswith("0/1")
+    assert first[3] == str(run["interventions"])
+    assert first[4] == f"{run['autonomy_pct']:.1f}"
+    events = run["off_road_events"]
+    assert events, "the tiny network should leave the road within 6 s"
+    failures = results[results.index("### Failure analysis"):]
+    failure_rows = _table_rows(failures)
+    assert len(failure_rows) == len(events)
+    assert [row[6] for row in failure_rows] == [f"{e['cte_m']:+.2f}" for e in events]
+    assert "report/failures.png" in failures
+    assert "report/stills_lake_20mph.png" in results
+    assert "report/map_lake_20mph_map.png" in results
+
+
+def test_markdown_links_existing_pngs_and_html_embeds_them(report) -> None:
+    result, out, markdown = report
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", markdown)
+    assert links and all(link.startswith("report/") for link in links)
+    for link in links:
+        assert (out / link).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(out / link for link in links) == sorted(result.figures)
+    assert sorted(p.name for p in (out / "report").iterdir()) == sorted(
+        {Path(link).name for link in links})
+
+    page = result.html_path.read_text(encoding="utf-8")
+    sources = re.findall(r'\bsrc="([^"]*)"', page)
+    assert len(sources) == len(links)
+    for source in sources:
+        prefix = "data:image/png;base64,"
+        assert source.startswith(prefix)
+        assert base64.b64decode(source[len(prefix):])[:4] == b"\x89PNG"
+    assert not re.findall(r'\bhref="(?!#)', page)  # only in-page links
+    assert "<table>" in page and "max-width: 100%" in page
+
+
+def test_timings_from_demo_json(report) -> None:
+    _, _, markdown = report
+    rows = _table_rows(_section(markdown, SECTION_TITLES["timings"]))
+    assert [row[:2] for row in rows] == [["record", "1.5"], ["train", "9.0"], ["total", "10.5"]]
+    assert rows[0][4] == "rows 115"
+
+
+def test_stills_are_spread_over_the_video(run_dir) -> None:
+    stills = read_stills(run_dir / "eval" / "lake_20mph.mp4", 3)
+    times = [time_s for time_s, _ in stills]
+    assert len(stills) == 3 and times == sorted(times) and times[0] > 0
+    assert all(frame.ndim == 3 and frame.shape[2] == 3 for _, frame in stills)
+    # Seeking lands on the same frames as reading through the video.
+    fps = 15.0
+    in_order = _read_stills_in_order(run_dir / "eval" / "lake_20mph.mp4",
+                                     [round(time_s * fps) for time_s in times], fps)
+    assert [t for t, _ in in_order] == pytest.approx(times)
+    assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(stills, in_order, strict=True))
+    assert read_stills(run_dir / "eval" / "missing.mp4") == []
+
+
+def test_missing_pieces_give_notes_not_crashes(tmp_path: Path, run_dir: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    result = write_report(empty)
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    for title in SECTION_TITLES.values():
+        assert f"\n## {title}\n" in markdown
+    assert len(result.notes) == len(SECTION_TITLES)
+    assert result.figures == [] and "src=" not in result.html_path.read_text()
+
+    # Only an evaluation, with a broken video; a training folder with a corrupt model.
+    partial = tmp_path / "partial"
+    shutil.copytree(run_dir / "eval", partial / "eval")
+    (partial / "eval" / "lake_20mph.mp4").write_bytes(b"not a video")
+    (partial / "train").mkdir()
+    (partial / "train" / "model.keras").write_bytes(b"not a model")
+    result = write_report(partial)
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    network = _section(markdown, SECTION_TITLES["network"])
+    assert "could not be generated" in network
+    assert "`lake_20mph.mp4` is missing or unreadable" in markdown
+    assert "report/failures.png" in markdown  # the rest of the results is there
+
+    (partial / "eval" / "eval.json").write_text("{ not json", encoding="utf-8")
+    result = write_report(partial)
+    results = _section(result.markdown_path.read_text(), SECTION_TITLES["results"])
+    assert "eval.json` is unreadable" in results
+
+
+def test_report_command_writes_into_out(tmp_path: Path, run_dir: Path, capsys) -> None:
+    (run_dir / "eval" / "eval.json").stat()  # the module's run folder is untouched
+    partial = tmp_path / "run"
+    shutil.copytree(run_dir / "train", partial)  # a training folder given as RUN_DIR
+    out = tmp_path / "out"
+    assert main(["report", str(partial), "--out", str(out), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert Path(printed["markdown"]) == out / "report.md"
+    assert Path(printed["html"]).is_file()
+    assert any("eval.json" in note for note in printed["notes"])
+    assert not (partial / "report.md").exists()
+    assert main(["report", str(tmp_path / "nowhere")]) == 2

@@ -1,0 +1,249 @@
+"""The main job: from nothing to a driving model, measured, with a write-up.
+
+``run_demo(DemoConfig(), "runs/demo")``:
+
+1. records the write-up's data with the expert (centred laps, left/right edge laps relabelled
+   with +-0.25, the sharp turns, the mountain track both ways, its sharp turns and its hairpin)
+   into ``runs/demo/data/<name>/``;
+2. balances, splits and trains (``runs/demo/train/``);
+3. evaluates in closed loop (``runs/demo/eval/``): lake at 15 and 30 mph, mountain at 15 and
+   25 mph, and unseen generated tracks at 20 mph, with videos for the built-in tracks. The set
+   speed is a maximum: the policy slows as its predicted steering grows (``slow_in_curves``),
+   because the mountain's 10.5 m hairpin cannot be taken at 25 mph (it would need ~1.2 g);
+
+4. writes ``report.md`` / ``report.html``.
+
+Each stage writes its folder and ``config.json``; ``demo.json`` holds stage timings. Running the
+demo again on the same folder reuses finished stages (recordings with their rows, a trained
+model), so an interrupted demo continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from clonedrive.config import save_config, write_json_atomic
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    quick: bool = False  #: small data, few epochs, one short evaluation (about a minute)
+    epochs: int | None = None  #: override the training epochs
+    unseen: int | None = None  #: override the number of unseen generated tracks
+    model: str = "fast"  #: architecture: fast trains in minutes on 2 CPU cores
+    video: bool = True  #: mp4s of the built-in-track runs
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class DemoRecording:
+    name: str
+    track: str
+    style: str
+    laps: int
+    speed_mph: float
+    reverse: bool = False
+    noise: float = 0.0
+    seconds: float | None = None
+    turn_curvature_per_m: float | None = None  #: turns style: record only tighter curves
+
+
+#: The write-up's data (folder names of data.recipe.WRITEUP_FOLDERS), recorded by the expert.
+#: Noise on the centred laps makes the car wander and the clean labels show the recovery.
+DEFAULT_RECORDINGS = (
+    DemoRecording("middle", "lake", "center", 3, 30.0, noise=0.15),
+    DemoRecording("left", "lake", "left", 1, 25.0),
+    DemoRecording("right", "lake", "right", 1, 25.0),
+    DemoRecording("turns", "lake", "turns", 1, 30.0, noise=0.15),
+    DemoRecording("mountain", "mountain", "center", 1, 30.0, noise=0.15),
+    DemoRecording("mountain_reverse", "mountain", "center", 1, 30.0, reverse=True, noise=0.15),
+    DemoRecording("mountain_turns", "mountain", "turns", 1, 30.0, noise=0.1,
+                  turn_curvature_per_m=1 / 40),
+    DemoRecording("hairpin", "mountain", "turns", 1, 30.0, reverse=True,
+                  turn_curvature_per_m=1 / 20),
+)
+
+#: --quick: enough to exercise every stage, not to drive well.
+QUICK_RECORDINGS = (
+    DemoRecording("middle", "lake", "center", 1, 30.0, noise=0.15, seconds=20.0),
+)
+
+
+def demo_plan(config: DemoConfig):
+    """(recordings, TrainConfig, EvalConfig) the demo runs for ``config``."""
+    from clonedrive.evaluate.rollout import EvalConfig
+    from clonedrive.model.train import TrainConfig
+
+    if config.quick:
+        recordings = QUICK_RECORDINGS
+        train = TrainConfig(model=config.model, epochs=config.epochs or 2, batch_size=64,
+                            learning_rate=1e-3, seed=config.seed)
+        evaluation = EvalConfig(tracks=("lake",), speeds_mph=(15.0,), laps=1,
+                                unseen=config.unseen or 0, video=config.video,
+                                max_seconds=10.0, slow_in_curves=True)
+    else:
+        recordings = DEFAULT_RECORDINGS
+        train = TrainConfig(model=config.model, epochs=config.epochs or 8, batch_size=128,
+                            learning_rate=1e-3, seed=config.seed)
+        evaluation = EvalConfig(tracks=(), speeds_mph=(), laps=2, video=config.video,
+                                unseen=10 if config.unseen is None else config.unseen,
+                                unseen_speed_mph=20.0, unseen_laps=1, slow_in_curves=True)
+    return recordings, train, evaluation
+
+
+def _record_stage(recordings, data_dir: Path, seed: int, progress: bool) -> list[dict]:
+    from clonedrive.data.driving_log import read_driving_log
+    from clonedrive.data.recorder import RecordConfig, record
+
+    done = []
+    for index, spec in enumerate(recordings):
+        out = data_dir / spec.name
+        if (out / "driving_log.csv").is_file():
+            rows = len(read_driving_log(out, verify_images="none").rows)
+            if rows > 0:
+                _say(progress, f"[record] {spec.name}: {rows} rows already recorded, reused")
+                done.append({"name": spec.name, "rows": rows, "reused": True})
+                continue
+        options = {}
+        if spec.turn_curvature_per_m is not None:
+            options["turn_curvature_per_m"] = spec.turn_curvature_per_m
+        record_config = RecordConfig(track=spec.track, style=spec.style, laps=spec.laps,
+                                     speed_mph=spec.speed_mph, reverse=spec.reverse,
+                                     noise=spec.noise, seconds=spec.seconds,
+                                     seed=seed + index, start_time="2026-01-01T12:00:00",
+                                     **options)
+        _say(progress, f"[record] {spec.name}: {spec.track} {spec.style}"
+                       f"{' reversed' if spec.reverse else ''}, {spec.laps} lap(s) "
+                       f"at up to {spec.speed_mph:g} mph")
+        summary = record(record_config, out, progress=progress)
+        done.append({"name": spec.name, "rows": summary.rows,
+                     "off_road_events": summary.off_road_events, "reused": False})
+    return done
+
+
+def _recipe_text(recordings, data_dir: Path) -> str:
+    from clonedrive.data.recipe import WRITEUP_FOLDERS, writeup_recipe_text
+
+    names = [spec.name for spec in recordings]
+    if sorted(names) == sorted(WRITEUP_FOLDERS):
+        return writeup_recipe_text({name: data_dir / name for name in names})
+    lines = ["# clonedrive demo --quick: centre driving only", "[defaults]",
+             'cameras = "all"', "correction = 0.2", "flip = true", ""]
+    for name in names:
+        lines += ["[[recording]]", f'name = "{name}"', f'path = "{(data_dir / name).as_posix()}"',
+                  ""]
+    return "\n".join(lines)
+
+
+def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) -> dict:
+    """Run every stage into ``out_dir``; returns the summary written to ``demo.json``."""
+    from clonedrive.data.recipe import load_recipe
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.evaluate.rollout import evaluate, format_table
+    from clonedrive.model.train import train
+    from clonedrive.report.writeup import write_report
+
+    out = Path(out_dir).absolute()
+    out.mkdir(parents=True, exist_ok=True)
+    save_config(config, out / "config.json")
+    recordings, train_config, eval_config = demo_plan(config)
+    summary: dict = {"config": config.__dict__, "stages": {}}
+    started = time.perf_counter()
+
+    def stage(name: str, seconds: float, **extra) -> None:
+        summary["stages"][name] = {"seconds": round(seconds, 1), **extra}
+        write_json_atomic(out / "demo.json", summary)
+
+    t0 = time.perf_counter()
+    recorded = _record_stage(recordings, out / "data", config.seed, progress)
+    stage("record", time.perf_counter() - t0, recordings=recorded,
+          rows=sum(r["rows"] for r in recorded))
+
+    t0 = time.perf_counter()
+    recipe_path = out / "recipe.toml"
+    recipe_path.write_text(_recipe_text(recordings, out / "data"), encoding="utf-8")
+    train_dir = out / "train"
+    if (train_dir / "model.keras").is_file() and (train_dir / "state.json").is_file():
+        state = _read_json(train_dir / "state.json")
+        resume = state.get("epochs_done", 0) < train_config.epochs
+    else:
+        resume = False
+    if not (train_dir / "model.keras").is_file() or resume:
+        _say(progress, f"[train] {train_config.model} for {train_config.epochs} epochs")
+        train(train_config, load_recipe(recipe_path), train_dir, resume=resume,
+              progress=progress)
+    else:
+        _say(progress, "[train] model already trained, reused")
+    stage("train", time.perf_counter() - t0, model=train_config.model,
+          epochs=train_config.epochs)
+
+    t0 = time.perf_counter()
+    policy = load_policy(train_dir / "model.keras", slow_in_curves=eval_config.slow_in_curves)
+    reports = []
+    for runs in _evaluation_groups(config, eval_config):
+        _say(progress, "[evaluate] " + ", ".join(
+            f"{t} at {v:g} mph" for t in runs.tracks for v in runs.speeds_mph)
+             + (f"{', ' if runs.tracks else ''}{runs.unseen} unseen tracks at "
+                f"{runs.unseen_speed_mph or runs.speeds_mph[0]:g} mph" if runs.unseen else ""))
+        reports.append(evaluate(policy, runs, out / "eval" / "part", progress=progress,
+                                model_path=str(train_dir / "model.keras")))
+    report = _merge_reports(reports, out / "eval")
+    stage("evaluate", time.perf_counter() - t0, totals=report["totals"])
+    _say(progress, format_table(report))
+
+    t0 = time.perf_counter()
+    written = write_report(out, progress=progress)
+    stage("report", time.perf_counter() - t0,
+          files=[str(written.markdown_path), str(written.html_path)])
+    summary["total_seconds"] = round(time.perf_counter() - started, 1)
+    write_json_atomic(out / "demo.json", summary)
+    return summary
+
+
+def _evaluation_groups(config: DemoConfig, base):
+    """The demo's runs: lake 15/30 (2 laps), mountain 15/25 (1 lap), unseen at 20 mph."""
+    if config.quick:
+        return [base]
+    return [
+        replace(base, tracks=("lake",), speeds_mph=(15.0, 30.0), laps=2, unseen=0),
+        replace(base, tracks=("mountain",), speeds_mph=(15.0, 25.0), laps=1, unseen=0),
+        replace(base, tracks=(), speeds_mph=(20.0,), laps=1, video=False),
+    ]
+
+
+def _merge_reports(reports: list[dict], eval_dir: Path) -> dict:
+    """Move each part's files into ``eval_dir`` and write one eval.json for all runs."""
+    import shutil
+
+    from clonedrive.evaluate.rollout import _totals
+
+    part = eval_dir / "part"
+    runs = []
+    for report in reports:
+        runs += report["runs"]
+    eval_dir.mkdir(parents=True, exist_ok=True)
+    for path in sorted(part.rglob("*")):
+        if path.is_file() and path.name not in ("eval.json", "config.json"):
+            target = eval_dir / path.relative_to(part)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            path.replace(target)
+    shutil.copy2(part / "config.json", eval_dir / "config.json")
+    shutil.rmtree(part)
+    merged = dict(reports[0])
+    merged["runs"] = runs
+    merged["totals"] = _totals(runs)
+    write_json_atomic(eval_dir / "eval.json", merged)
+    return merged
+
+
+def _read_json(path: Path) -> dict:
+    import json
+
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(text, flush=True)

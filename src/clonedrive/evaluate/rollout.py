@@ -87,14 +87,14 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
     frame = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     height, width = frame.shape[:2]
     overlay = frame.copy()
-    cv2.rectangle(overlay, (0, 0), (width, 44), (0, 0, 0), -1)
+    cv2.rectangle(overlay, (0, 0), (width, 58), (0, 0, 0), -1)
     frame = cv2.addWeighted(overlay, 0.55, frame, 0.45, 0)
     text = (f"steer {steering:+.2f}  {speed_mph:4.1f} mph  CTE {cte_m:+.2f} m  "
-            f"lap {min(lap + 1, laps)}/{laps}  interventions {interventions}")
-    cv2.putText(frame, text, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
+            f"lap {min(lap + 1, laps)}/{laps}  int. {interventions}")
+    cv2.putText(frame, text, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.62, (255, 255, 255), 2,
                 cv2.LINE_AA)
     # Steering bar: centre tick, filled to the commanded side.
-    bar_y, mid, half = 32, width // 2, width // 3
+    bar_y, mid, half = 44, width // 2, width // 3
     cv2.line(frame, (mid - half, bar_y), (mid + half, bar_y), (180, 180, 180), 1)
     cv2.line(frame, (mid, bar_y - 5), (mid, bar_y + 5), (255, 255, 255), 1)
     end = int(mid + half * max(-1.0, min(1.0, steering)))

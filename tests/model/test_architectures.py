@@ -30,8 +30,8 @@ SEED_LAYERS = [
 PILOTNET_LAYERS = [
     ("image_rgb", "InputLayer", (160, 320, 3)),
     ("crop", "Cropping2D", (55, 320, 3)),
+    ("unit_range", "Rescaling", (55, 320, 3)),
     ("resize", "Resizing", (66, 200, 3)),
-    ("unit_range", "Rescaling", (66, 200, 3)),
     ("rgb_to_yuv", "Conv2D", (66, 200, 3)),
     ("conv1", "Conv2D", (31, 98, 24)),
     ("conv2", "Conv2D", (14, 47, 36)),
@@ -120,7 +120,7 @@ def test_seed_dropout_is_optional() -> None:
 def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
     assert _layers(build_model("pilotnet", data_format="channels_last")) == PILOTNET_LAYERS
     model = build_model("pilotnet")
-    assert _layers(model) == _channels_first(PILOTNET_LAYERS, after="unit_range")
+    assert _layers(model) == _channels_first(PILOTNET_LAYERS, after="resize")
     assert model.count_params() == PILOTNET_PARAMS
     yuv = model.get_layer("rgb_to_yuv")
     assert not yuv.trainable
@@ -140,7 +140,7 @@ def test_fast_is_small() -> None:
     model = build_model("fast")
     assert model.count_params() < 100_000
     assert [type(layer).__name__ for layer in model.layers[:5]] == [
-        "InputLayer", "Cropping2D", "AveragePooling2D", "Rescaling", "Permute"
+        "InputLayer", "Cropping2D", "Rescaling", "AveragePooling2D", "Permute"
     ]
 
 
@@ -175,6 +175,7 @@ def test_save_load_safe_mode_and_h5_give_identical_predictions(name: str, tmp_pa
     assert not any(type(layer).__name__ == "Lambda" for layer in model.layers)
     expected = np.asarray(model.predict(FRAMES, verbose=0))
     assert expected.shape == (3, 1)
+    assert model.input.dtype == "uint8"
     # uint8 frames and their float32 copies give the same answer (the model casts).
     np.testing.assert_array_equal(
         np.asarray(model.predict(FRAMES.astype(np.float32), verbose=0)), expected

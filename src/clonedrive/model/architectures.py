@@ -1,7 +1,10 @@
 """Keras 3 steering networks: ``seed`` (the write-up's), ``pilotnet`` (NVIDIA 2016), ``fast``.
 
-Every model takes one 160x320 RGB camera frame with uint8 values (as float32 or uint8) and
-returns one steering value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``.
+Every model takes one 160x320 RGB camera frame with uint8 values and returns one steering
+value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``. The input layer is
+declared ``uint8``: float32 frames holding whole numbers 0..255 (what ``astype(np.float32)``
+of a camera frame gives) are converted exactly; the cast to float happens after cropping,
+which saves converting the 105 cropped rows of every frame (about 5% of a training step).
 All preprocessing -- crop, resize, colour conversion, normalisation -- is done by built-in
 layers inside the model, so whoever feeds the model a 160x320 RGB frame (the trainer, the
 drive server, the evaluator) gets the same answer, and every model loads with
@@ -64,6 +67,10 @@ class _Seeds:
         return self._next
 
 
+def _frame_input():
+    return keras.Input(shape=IMAGE_SHAPE, dtype="uint8", name="image_rgb")
+
+
 def _crop(inputs):
     return layers.Cropping2D(cropping=((CROP_TOP_PX, CROP_BOTTOM_PX), (0, 0)), name="crop")(inputs)
 
@@ -93,7 +100,7 @@ def build_seed(
     """
     seeds = _Seeds(seed)
     reg = keras.regularizers.L2(l2)
-    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    inputs = _frame_input()
     x = _crop(inputs)
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
     x = _to_data_format(x, data_format)
@@ -140,16 +147,16 @@ def build_pilotnet(
 ) -> keras.Model:
     """NVIDIA's PilotNet (Bojarski et al. 2016) fed like the paper: 66x200 YUV.
 
-    Input 160x320x3 RGB -> crop (80, 25) -> Resizing(66, 200) -> Rescaling(1/255) ->
+    Input 160x320x3 RGB -> crop (80, 25) -> Rescaling(1/255) -> Resizing(66, 200) ->
     [Permute to channels-first] -> frozen 1x1 Conv2D RGB->YUV (each channel scaled to
     [-1, 1]) -> Conv2D 24, 36, 48 (5x5/2) and 64, 64 (3x3) -> Flatten -> Dense 100, 50, 10
     -> Dense 1; ReLU.
     """
     seeds = _Seeds(seed)
-    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    inputs = _frame_input()
     x = _crop(inputs)
-    x = layers.Resizing(66, 200, interpolation="bilinear", name="resize")(x)
     x = layers.Rescaling(1.0 / 255.0, name="unit_range")(x)
+    x = layers.Resizing(66, 200, interpolation="bilinear", name="resize")(x)
     x = _to_data_format(x, data_format)
     yuv = _rgb_to_yuv_layer(data_format)
     x = yuv(x)
@@ -177,16 +184,16 @@ def build_fast(
 ) -> keras.Model:
     """A small network (about 89k parameters) that trains in minutes on 2 CPU cores.
 
-    Input 160x320x3 -> crop (80, 25) -> 55x320 -> AveragePooling2D (2, 2) -> 27x160 ->
-    Rescaling to [-1, 1] -> [Permute to channels-first] -> Conv2D 16 5x5 stride (2, 2) ->
-    12x78 -> Conv2D 32 3x3 stride (1, 2) -> 10x38 -> Conv2D 32 3x3 stride (2, 2) -> 4x18 ->
-    Flatten -> Dense 32 -> Dense 1; ReLU.
+    Input 160x320x3 -> crop (80, 25) -> 55x320 -> Rescaling to [-1, 1] ->
+    AveragePooling2D (2, 2) -> 27x160 -> [Permute to channels-first] -> Conv2D 16 5x5
+    stride (2, 2) -> 12x78 -> Conv2D 32 3x3 stride (1, 2) -> 10x38 -> Conv2D 32 3x3 stride
+    (2, 2) -> 4x18 -> Flatten -> Dense 32 -> Dense 1; ReLU.
     """
     seeds = _Seeds(seed)
-    inputs = keras.Input(shape=IMAGE_SHAPE, name="image_rgb")
+    inputs = _frame_input()
     x = _crop(inputs)
-    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
+    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
     x = _to_data_format(x, data_format)
     for index, (filters, size, stride) in enumerate(
         [(16, 5, (2, 2)), (32, 3, (1, 2)), (32, 3, (2, 2))], start=1

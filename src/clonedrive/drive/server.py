@@ -40,7 +40,7 @@ import threading
 import time
 import uuid
 from dataclasses import dataclass, field, replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
@@ -381,7 +381,7 @@ class DriveServer:
         # Names are strictly increasing: a frame within the same millisecond gets the next one.
         now_ms = max(time.time_ns() // 1_000_000, self._last_frame_ms + 1)
         self._last_frame_ms = now_ms
-        stamp = datetime.fromtimestamp(now_ms // 1000, tz=timezone.utc)
+        stamp = datetime.fromtimestamp(now_ms // 1000, tz=UTC)
         name = f"{stamp:%Y_%m_%d_%H_%M_%S}_{now_ms % 1000:03d}.jpg"
         path = self.image_folder / name
         temporary = path.with_name(f".{name}.tmp")

@@ -424,7 +424,7 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
     put back on the centreline and the run goes on."""
     from tqdm import tqdm
 
-    from clonedrive.evaluate.metrics import OffRoadRecord, RunTrace
+    from clonedrive.evaluate.metrics import RunTrace
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim_config = SimConfig(cameras=("center",), scenery=config.scenery)
@@ -450,11 +450,9 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
                     controls = reply
                 obs, info = sim.step(controls)
                 steps += 1
-                _record(trace, obs, controls)
+                trace.add_step(obs, controls.steering)
                 for event in info["events"]:
-                    trace.off_road.append(OffRoadRecord(
-                        time_s=event.time_s, s_m=event.s_m, x_m=event.x_m, y_m=event.y_m,
-                        cte_m=event.cte_m, lap=event.lap))
+                    trace.add_off_road(event)
                     obs = sim.intervene(max(obs.speed_mph, 5.0))
                 trace.laps_completed = obs.laps
                 trace.distance_m = obs.distance_m
@@ -474,10 +472,3 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
         return summary
 
 
-def _record(trace, obs, controls: Controls) -> None:
-    trace.time_s.append(obs.time_s)
-    trace.x_m.append(obs.x_m)
-    trace.y_m.append(obs.y_m)
-    trace.cte_m.append(obs.cte_m)
-    trace.steering.append(controls.steering)
-    trace.speed.append(obs.speed_mph)

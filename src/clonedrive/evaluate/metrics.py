@@ -58,6 +58,21 @@ class RunTrace:
     distance_m: float = 0.0
     timed_out: bool = False
 
+    def add_step(self, obs, steering: float) -> None:
+        """Record one control step: the observation after it and the steering applied."""
+        self.time_s.append(obs.time_s)
+        self.x_m.append(obs.x_m)
+        self.y_m.append(obs.y_m)
+        self.cte_m.append(obs.cte_m)
+        self.steering.append(steering)
+        self.speed.append(obs.speed_mph)
+
+    def add_off_road(self, event, frame_png: str | None = None) -> None:
+        """Record an off-road event (a simulator ``OffRoadEvent``) and the frame seen then."""
+        self.off_road.append(OffRoadRecord(
+            time_s=event.time_s, s_m=event.s_m, x_m=event.x_m, y_m=event.y_m,
+            cte_m=event.cte_m, lap=event.lap, frame_png=frame_png))
+
     def summary(self) -> dict:
         """The figures written to eval.json for this run."""
         cte = np.abs(np.asarray(self.cte_m, dtype=float))

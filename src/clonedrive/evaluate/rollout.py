@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.config import save_config, write_json_atomic
-from clonedrive.evaluate.metrics import OffRoadRecord, RunTrace
+from clonedrive.evaluate.metrics import RunTrace
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 #: Generated tracks used as unseen tracks start at this seed; recordings never use them.
@@ -201,12 +201,7 @@ def _step(episode: _Episode, controls, out: Path) -> None:
     sim, trace, spec = episode.sim, episode.trace, episode.spec
     seen = episode.obs.images["center"]
     obs, info = sim.step(controls)
-    trace.time_s.append(obs.time_s)
-    trace.x_m.append(obs.x_m)
-    trace.y_m.append(obs.y_m)
-    trace.cte_m.append(obs.cte_m)
-    trace.steering.append(controls.steering)
-    trace.speed.append(obs.speed_mph)
+    trace.add_step(obs, controls.steering)
     if episode.video is not None:
         episode.video.append(hud_frame(
             seen, steering=controls.steering, speed_mph=obs.speed_mph, cte_m=obs.cte_m,
@@ -214,9 +209,7 @@ def _step(episode: _Episode, controls, out: Path) -> None:
     for event in info["events"]:
         frame_png = _save_frame(obs.images["center"], out / "off_road" /
                                 f"{episode.name}_{len(trace.off_road) + 1:03d}.png")
-        trace.off_road.append(OffRoadRecord(
-            time_s=event.time_s, s_m=event.s_m, x_m=event.x_m, y_m=event.y_m, cte_m=event.cte_m,
-            lap=event.lap, frame_png=str(frame_png.relative_to(out))))
+        trace.add_off_road(event, frame_png=str(frame_png.relative_to(out)))
         obs = sim.intervene(spec.speed_mph)
         episode.controller.reset()
     trace.laps_completed = obs.laps

@@ -122,9 +122,9 @@ class ImageCache:
         todo = [int(index) for index in np.flatnonzero(~self.filled) if index not in self.failed]
         bar = None
         if progress and todo:
-            from tqdm import tqdm
+            from clonedrive.progress import progress_bar
 
-            bar = tqdm(total=len(todo), desc="decoding images", unit="img")
+            bar = progress_bar(total=len(todo), desc="decoding images", unit="img")
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
             for _ in pool.map(self._decode, todo, chunksize=64):
                 if bar is not None:

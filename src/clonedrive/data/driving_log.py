@@ -356,9 +356,9 @@ def _verify_images(
 
     iterable = rows
     if progress:
-        from tqdm import tqdm
+        from clonedrive.progress import progress_bar
 
-        iterable = tqdm(rows, desc="checking images", unit="row", leave=False)
+        iterable = progress_bar(rows, desc="checking images", unit="row", leave=False)
     good: list[LogRow] = []
     bad: list[SkippedRow] = []
     for row in iterable:

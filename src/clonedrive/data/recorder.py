@@ -419,7 +419,8 @@ def write_session_config(out: Path, config, track, version: str, session: dict) 
 def _progress_bar(laps: int, enabled: bool):
     if not enabled:
         return None
-    from tqdm import tqdm
+    from clonedrive.progress import progress_bar
 
-    return tqdm(total=laps, desc="recording", unit="lap",
-                bar_format="{l_bar}{bar}| {n:.2f}/{total} laps [{elapsed}<{remaining}{postfix}]")
+    return progress_bar(
+        total=laps, desc="recording", unit="lap",
+        bar_format="{l_bar}{bar}| {n:.2f}/{total} laps [{elapsed}<{remaining}{postfix}]")

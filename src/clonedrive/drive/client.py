@@ -422,9 +422,8 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
     sends the center camera and the car's state, and applies the server's reply for one
     control period (1/15 s of simulated time). Leaving the road is an intervention: the car is
     put back on the centreline and the run goes on."""
-    from tqdm import tqdm
-
     from clonedrive.evaluate.metrics import RunTrace
+    from clonedrive.progress import progress_bar
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim_config = SimConfig(cameras=("center",), scenery=config.scenery)
@@ -438,8 +437,8 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
         max_steps = max(1, math.ceil(limit_s * hz - 1e-6))
         trace = RunTrace(track=config.track, speed_mph=float("nan"), laps_target=config.laps,
                          control_hz=hz)
-        bar = tqdm(total=config.laps * round(length_m), unit="m", desc="autonomous",
-                   disable=not progress, dynamic_ncols=True)
+        bar = progress_bar(total=config.laps * round(length_m), unit="m", desc="autonomous",
+                           enabled=progress)
         controls = Controls()
         steps = 0
         try:

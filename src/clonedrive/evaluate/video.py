@@ -159,7 +159,8 @@ def encode_folder(
     and reported in :attr:`VideoSummary.skipped`. Raises ``ValueError`` if no frame is usable.
     """
     import cv2
-    from tqdm import tqdm
+
+    from clonedrive.progress import progress_bar
 
     files = frame_files(folder)
     if not files:
@@ -168,7 +169,7 @@ def encode_folder(
     summary = VideoSummary(path=out_path, frames=0)
     writer = VideoWriter(out_path, fps)
     try:
-        for path in tqdm(files, desc="video", unit="frame", disable=not progress):
+        for path in progress_bar(files, desc="video", unit="frame", enabled=progress):
             bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
             if bgr is None:
                 summary.skipped.append((path.name, "does not decode"))

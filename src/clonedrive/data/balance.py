@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import atomic_path
+
 DEFAULT_BINS = 20
 
 
@@ -111,10 +113,8 @@ def plot_histogram(
     axes.set_ylabel("samples")
     axes.set_title(f"{title} ({int(np.sum(counts))} samples)")
     figure.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    figure.savefig(temporary, format="png")
-    os.replace(temporary, path)
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png")
     return path
 
 

@@ -48,6 +48,7 @@ from websockets.asyncio.server import Server, ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from clonedrive.config import write_bytes_atomic
 from clonedrive.drive import protocol
 from clonedrive.drivers.network import Policy
 
@@ -384,12 +385,9 @@ class DriveServer:
         stamp = datetime.fromtimestamp(now_ms // 1000, tz=UTC)
         name = f"{stamp:%Y_%m_%d_%H_%M_%S}_{now_ms % 1000:03d}.jpg"
         path = self.image_folder / name
-        temporary = path.with_name(f".{name}.tmp")
         try:
-            temporary.write_bytes(jpeg)
-            os.replace(temporary, path)
+            write_bytes_atomic(path, jpeg)
         except OSError as error:
-            temporary.unlink(missing_ok=True)
             return f"cannot save {path}: {error}"
         return None
 

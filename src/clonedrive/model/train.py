@@ -39,7 +39,14 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import config_to_dict, load_config, save_config, write_json_atomic
+from clonedrive.config import (
+    atomic_path,
+    config_to_dict,
+    load_config,
+    save_config,
+    write_json_atomic,
+    write_text_atomic,
+)
 from clonedrive.data.recipe import (
     DEFAULT_CORRECTION,
     Recipe,
@@ -147,7 +154,7 @@ def train(
     recipe = resolve_source(source, config.correction)
     state = _prepare_run_folder(out, config, recipe, resume)
     save_config(config, out / "config.json")
-    _write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
+    write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
 
     data = _prepare_data(config, recipe, out, progress=progress)
     try:
@@ -208,10 +215,9 @@ def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike) -> Path
 
     h5_path = Path(h5_path)
     model = keras.saving.load_model(keras_path, safe_mode=True, compile=False)
-    temporary = h5_path.with_name(f".{h5_path.stem}.tmp.h5")
     logging.getLogger("absl").setLevel(logging.ERROR)  # "HDF5 is legacy": we know
-    model.save(temporary)
-    os.replace(temporary, h5_path)
+    with atomic_path(h5_path) as temporary:
+        model.save(temporary)
     return h5_path
 
 
@@ -255,15 +261,6 @@ def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: 
         )
     out.mkdir(parents=True, exist_ok=True)
     return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
-
-
-def _write_text_atomic(path: Path, text: str) -> None:
-    temporary = path.with_name(f".{path.name}.tmp")
-    with open(temporary, "w", encoding="utf-8") as handle:
-        handle.write(text)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(temporary, path)
 
 
 def _read_history(path: Path) -> list[dict]:
@@ -479,9 +476,8 @@ def _run_recorder_class():
     return RunRecorder
 
 def _save_model_atomic(model, path: Path) -> None:
-    temporary = path.with_name(f".{path.stem}.tmp.keras")
-    model.save(temporary)
-    os.replace(temporary, path)
+    with atomic_path(path) as temporary:
+        model.save(temporary)
 
 
 def _write_history(path: Path, history: list[dict]) -> None:
@@ -490,7 +486,7 @@ def _write_history(path: Path, history: list[dict]) -> None:
     writer.writeheader()
     for row in history:
         writer.writerow({key: row[key] for key in HISTORY_COLUMNS})
-    _write_text_atomic(path, buffer.getvalue())
+    write_text_atomic(path, buffer.getvalue())
 
 
 def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
@@ -514,7 +510,6 @@ def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
     axes.grid(True, alpha=0.3)
     axes.legend()
     figure.tight_layout()
-    temporary = path.with_name(f".{path.stem}.tmp.png")
-    figure.savefig(temporary, format="png")
-    os.replace(temporary, path)
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png")
     return path

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+from clonedrive.config import atomic_path  # noqa: E402
 from clonedrive.world.track import Track  # noqa: E402
 
 
@@ -82,8 +83,7 @@ def plot_track_map(track: Track, path: str | Path, *, title: str | None = None,
         f"elevation range {summary['elevation_range_m']:.0f} m, "
         f"min radius {summary['min_radius_m']:.0f} m"), fontsize=10)
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp)
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary)
     plt.close(fig)
-    tmp.replace(path)
     return path

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import atomic_path
+
 #: Figure resolution, dots per inch.
 DPI = 100
 
@@ -32,10 +34,8 @@ class Panel:
 def save_figure(figure, path: str | os.PathLike) -> Path:
     """Write a matplotlib ``Figure`` as PNG via a temp file + rename; returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.stem}.tmp.png")
-    figure.savefig(temporary, format="png", dpi=DPI, bbox_inches="tight", pad_inches=0.12)
-    os.replace(temporary, path)
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png", dpi=DPI, bbox_inches="tight", pad_inches=0.12)
     return path
 
 

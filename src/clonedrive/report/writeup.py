@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import atomic_path, write_text_atomic
 from clonedrive.report.document import (
     Bullets,
     Document,
@@ -149,8 +150,8 @@ def write_report(run_dir: str | os.PathLike, out_dir: str | os.PathLike | None =
         bar.close()
     document.intro = writer.intro()
 
-    markdown_path = _write_text_atomic(out / MARKDOWN_NAME, to_markdown(document, out))
-    html_path = _write_text_atomic(out / HTML_NAME, to_html(document))
+    markdown_path = write_text_atomic(out / MARKDOWN_NAME, to_markdown(document, out))
+    html_path = write_text_atomic(out / HTML_NAME, to_html(document))
     figures = [figure.path for figure in document.figures()]
     _remove_stale_figures(figures_dir, figures)
     return ReportResult(markdown_path=markdown_path, html_path=html_path, figures=figures,
@@ -266,17 +267,6 @@ def _read_stills_in_order(video_path: str | os.PathLike, wanted: list[int], fps:
         capture.release()
 
 
-def _write_text_atomic(path: Path, text: str) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.tmp")
-    with open(temporary, "w", encoding="utf-8") as handle:
-        handle.write(text)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(temporary, path)
-    return path
-
-
 def _remove_stale_figures(figures_dir: Path, keep: list[Path]) -> None:
     """Delete PNGs an earlier report left in ``figures_dir`` that this one does not use."""
     kept = {path.resolve() for path in keep}
@@ -287,9 +277,8 @@ def _remove_stale_figures(figures_dir: Path, keep: list[Path]) -> None:
 
 def _copy_figure(source: Path, figures_dir: Path, name: str) -> Path:
     target = figures_dir / name
-    temporary = target.with_name(f".{target.stem}.tmp.png")
-    shutil.copyfile(source, temporary)
-    os.replace(temporary, target)
+    with atomic_path(target) as temporary:
+        shutil.copyfile(source, temporary)
     return target
 
 

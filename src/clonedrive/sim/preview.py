@@ -8,12 +8,12 @@ mountain the hairpin), the bridge (lake theme), a crest. One labelled row per pl
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import write_bytes_atomic
 from clonedrive.sim.scenery import find_bridge, longest_run
 from clonedrive.world.track import Track, load_track
 
@@ -116,12 +116,4 @@ def write_track_strip(
     ok, encoded = cv2.imencode(".png", cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))
     if not ok:
         raise RuntimeError(f"could not encode {path}")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(encoded.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_bytes_atomic(path, encoded.tobytes())

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import atomic_path
 from clonedrive.sim.manual import GAMEPAD_AXES, MENU, DrivingSession
 
 #: Window size [px] (fixed): the camera view (2:1, like the 320x160 images) above a HUD panel.
@@ -368,11 +369,9 @@ class DrivingWindow:
             raise RuntimeError("the window has no frame to save yet")
         image = texture_rgb(texture)
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        temp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-        if not cv2.imwrite(str(temp), image[:, :, ::-1]):
-            raise RuntimeError(f"OpenCV could not write {path} (use .png or .jpg)")
-        os.replace(temp, path)
+        with atomic_path(path) as temporary:
+            if not cv2.imwrite(str(temporary), image[:, :, ::-1]):
+                raise RuntimeError(f"OpenCV could not write {path} (use .png or .jpg)")
         return path
 
     def close(self) -> None:

@@ -21,6 +21,15 @@ DESCRIPTION = (
 HISTOGRAM_BAR_WIDTH = 40
 
 
+def add_log_format_arguments(parser: argparse.ArgumentParser) -> None:
+    """How a recording is written: shared by ``record`` and the ``sim`` window."""
+    parser.add_argument("--header", action="store_true",
+                        help="write the CSV header line (the Udacity simulator writes none)")
+    parser.add_argument("--relative-paths", action="store_true",
+                        help="write IMG/<name> instead of absolute image paths")
+    parser.add_argument("--jpeg-quality", type=int, default=75, help="JPEG quality 1-100")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from clonedrive.drivers.expert import STYLES
 
@@ -39,11 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seeds the noise, weave and scene")
     parser.add_argument("--offset-fraction", type=float, default=0.6,
                         help="left/right styles: fraction of the usable half-width off centre")
-    parser.add_argument("--header", action="store_true",
-                        help="write the CSV header line (the Udacity simulator writes none)")
-    parser.add_argument("--relative-paths", action="store_true",
-                        help="write IMG/<name> instead of absolute image paths")
-    parser.add_argument("--jpeg-quality", type=int, default=75, help="JPEG quality 1-100")
+    add_log_format_arguments(parser)
     parser.add_argument("--start-time", default=None,
                         help="ISO time of the first image name (default: now, local time)")
     parser.add_argument("--no-scenery", action="store_true",

@@ -7,6 +7,8 @@ import json
 import sys
 from dataclasses import asdict
 
+from clonedrive.commands.record import add_log_format_arguments
+
 HELP = "drive a track yourself in a window (keyboard, mouse or gamepad) and record it"
 DESCRIPTION = (
     "A window like the Udacity simulator's training mode: choose a track (lake, mountain, a "
@@ -52,11 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="seed of the menu's generated track (G picks the next)")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks...): quicker to load")
-    parser.add_argument("--header", action="store_true",
-                        help="recording: write the CSV header line (the simulator writes none)")
-    parser.add_argument("--relative-paths", action="store_true",
-                        help="recording: write IMG/<name> instead of absolute image paths")
-    parser.add_argument("--jpeg-quality", type=int, default=75, help="JPEG quality 1-100")
+    add_log_format_arguments(parser)  # the same options as `clonedrive record`
     parser.add_argument("--json", action="store_true",
                         help="print a summary of the run as one JSON object")
 

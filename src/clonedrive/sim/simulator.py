@@ -14,7 +14,7 @@ driving direction with no off-road event.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -118,6 +118,14 @@ class Simulator:
         self._rig = None
         self._state = VehicleState()
         self._obs: SimObservation | None = None
+        # Episode counters (reset() sets them again).
+        self._steps = 0
+        self._time_s = 0.0
+        self._distance_m = 0.0
+        self._laps = 0
+        self._controls = Controls()
+        self._reverse = False
+        self._direction = 1.0
         self.events: list[OffRoadEvent] = []
 
     # ------------------------------------------------------------------ lifecycle
@@ -247,7 +255,7 @@ class Simulator:
             images = self._rig.render(state.x_m, state.y_m, z, state.yaw_rad, pitch, roll)
         heading_error = float(wrap_angle(relative + (math.pi if self._reverse else 0.0)))
         return SimObservation(
-            time_s=getattr(self, "_time_s", 0.0),
+            time_s=self._time_s,
             images=images,
             x_m=state.x_m,
             y_m=state.y_m,
@@ -256,16 +264,16 @@ class Simulator:
             pitch_rad=pitch,
             roll_rad=roll,
             speed_mph=state.v_x_mps / MPH_TO_MPS,
-            steering=getattr(self, "_controls", Controls()).steering,
-            throttle=getattr(self, "_controls", Controls()).throttle,
-            brake=getattr(self, "_controls", Controls()).brake,
+            steering=self._controls.steering,
+            throttle=self._controls.throttle,
+            brake=self._controls.brake,
             s_m=s_dir,
             cte_m=direction * float(proj.cte_m[0]),
             heading_error_rad=heading_error,
             tyres_on_road=tuple(bool(v) for v in on_road),
             off_road=not bool(on_road.all()),
-            laps=getattr(self, "_laps", 0),
-            distance_m=getattr(self, "_distance_m", 0.0),
+            laps=self._laps,
+            distance_m=self._distance_m,
             off_road_events=len(self.events),
             lap_progress=0.0,
             curvature_per_m=direction * curvature,
@@ -292,8 +300,6 @@ class Simulator:
         return info
 
     def _with_counters(self, obs: SimObservation) -> SimObservation:
-        from dataclasses import replace
-
         length = self.track.length_m
         progress = self._progress_m / length - self._lap_index
         return replace(obs, laps=self._laps, off_road_events=len(self.events),

@@ -55,8 +55,8 @@ def main() -> None:
 
     from server_latency import round_trips, sample_jpeg
 
-    from clonedrive.drive import protocol
-    from clonedrive.drive.server import DriveServer
+    from clonedrive.udacity import protocol
+    from clonedrive.udacity.server import DriveServer
 
     seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=9.0)
     jpeg = sample_jpeg()

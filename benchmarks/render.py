@@ -20,7 +20,7 @@ import time
 def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
     from clonedrive.sim.cameras import CameraRig
     from clonedrive.sim.scene import Scene
-    from clonedrive.world.track import load_track
+    from clonedrive.world.catalog import load_track
 
     track = load_track(track_name)
     step_m = 30.0 * 0.44704 / 15.0  # 30 mph at 15 Hz

@@ -22,10 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-import clonedrive  # noqa: F401  (sets KERAS_BACKEND before keras is imported)
-from clonedrive.drive import protocol
-from clonedrive.drive.server import DriveServer
 from clonedrive.drivers.network import NetworkPolicy, load_model
+from clonedrive.udacity import protocol
+from clonedrive.udacity.server import DriveServer
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "tests" / "fixtures" / "udacity" / "stationary" / "IMG"
 
@@ -84,7 +83,9 @@ async def round_trips(port: int, frame: str, warmup: int, messages: int) -> list
 
 
 def time_parts(model, jpeg: bytes, repeats: int) -> dict[str, list[float]]:
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     batch = protocol.decode_image(jpeg)[np.newaxis].astype(np.float32)
     decode_s = time_calls(lambda: protocol.decode_image(jpeg), repeats)
@@ -106,7 +107,10 @@ def main() -> None:
     parser.add_argument("--architecture", default="seed")
     args = parser.parse_args()
 
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+
+    keras = import_keras()
 
     if args.model:
         model, name = load_model(args.model), args.model

@@ -30,8 +30,6 @@ import sys
 import time
 from pathlib import Path
 
-import clonedrive  # noqa: F401  (makes torch the default Keras backend before keras loads)
-
 FIXTURES = Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "udacity"
 
 
@@ -56,7 +54,9 @@ class _FixedBatches:
     """A keras PyDataset of the same batch repeated: measures the model, not the pipeline."""
 
     def __new__(cls, images, steering, count):
-        import keras
+        from clonedrive.keras_backend import import_keras
+
+        keras = import_keras()
 
         class Fixed(keras.utils.PyDataset):
             def __init__(self):
@@ -73,7 +73,9 @@ class _FixedBatches:
 
 def keras_trainer(images, steering, batches: int, data_format: str = "channels_first"):
     """A function that trains ``seed`` with model.fit on ``batches`` batches; images/s."""
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     from clonedrive.model.architectures import build_model
 
@@ -193,7 +195,9 @@ def pipeline_figures(samples, batch_size: int, repeats: int = 3) -> dict:
 
 def fit_pipeline_images_per_s(samples, cache, batch_size: int, batches: int, workers: int
                               ) -> float:
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     from clonedrive.data.augment import AugmentConfig
     from clonedrive.data.batches import DrivingBatches

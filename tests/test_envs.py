@@ -2,7 +2,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import clonedrive  # noqa: F401  (registers the environments)
+import clonedrive.envs  # noqa: F401  (registers the environments)
 
 
 @pytest.mark.parametrize("env_id", ["clonedrive/Lake-v0", "clonedrive/Mountain-v0"])

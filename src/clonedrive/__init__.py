@@ -1,19 +1,8 @@
-"""clonedrive: behavioural cloning of driving, end to end and headless."""
+"""clonedrive: behavioural cloning of driving, end to end and headless.
 
-import os as _os
-
-# Keras 3 runs on PyTorch here unless the user chose another backend.
-_os.environ.setdefault("KERAS_BACKEND", "torch")
+Importing the package is cheap and changes nothing: the Keras backend is chosen where Keras is
+first needed (:mod:`clonedrive.keras_backend`), and the Gymnasium environments register when
+:mod:`clonedrive.envs` is imported.
+"""
 
 __version__ = "0.1.0"
-
-
-def _register_gymnasium_envs() -> None:
-    try:
-        from clonedrive.envs import register_envs
-    except ModuleNotFoundError:  # gymnasium missing: the rest of clonedrive still works
-        return
-    register_envs()
-
-
-_register_gymnasium_envs()

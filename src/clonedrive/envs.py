@@ -1,5 +1,7 @@
 """Gymnasium environments: ``clonedrive/Lake-v0``, ``clonedrive/Mountain-v0``,
-``clonedrive/Generated-v0`` (``track_seed=N``). Registered when ``clonedrive`` is imported.
+``clonedrive/Generated-v0`` (``track_seed=N``). Registered when this module is imported
+(``import clonedrive.envs``, or ``gymnasium.make("clonedrive.envs:clonedrive/Lake-v0")``, which
+imports it); ``import clonedrive`` alone registers nothing.
 
 Observation: the center camera image (uint8 RGB 160x320x3) by default, or with
 ``observation="state"`` a float32 vector (speed mph, steering, CTE m, heading error rad,
@@ -15,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from clonedrive.sim.simulator import Controls, SimConfig, Simulator
-from clonedrive.world.track import load_track
+from clonedrive.world.catalog import load_track
 
 OFF_ROAD_REWARD = -10.0
 
@@ -91,3 +93,6 @@ def register_envs() -> None:
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point="clonedrive.envs:DrivingEnv", kwargs=kwargs,
                          max_episode_steps=1500)
+
+
+register_envs()

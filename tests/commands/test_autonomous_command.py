@@ -9,9 +9,9 @@ import socket
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.drive.server import DriveServer
 from clonedrive.drivers.network import NetworkPolicy
 from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.udacity.server import DriveServer
 
 
 def test_drives_for_the_time_limit_and_prints_metrics(capsys: pytest.CaptureFixture) -> None:

@@ -14,8 +14,8 @@ import pytest
 from websockets.asyncio.client import connect
 
 from clonedrive.cli import main
-from clonedrive.drive import protocol
 from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.udacity import protocol
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 

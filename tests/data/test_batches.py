@@ -80,7 +80,7 @@ def test_training_and_driving_feed_the_network_identical_rgb_pixels(tmp_path: Pa
     assert sky[2] > sky[0] and road[0] > road[2]  # blue sky, red road
 
     # The drive server's own decoder, where it exists, agrees too.
-    protocol = pytest.importorskip("clonedrive.drive.protocol")
+    protocol = pytest.importorskip("clonedrive.udacity.protocol")
     np.testing.assert_array_equal(protocol.decode_image(jpeg), training_images[0])
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
 from clonedrive.sim.simulator import SimConfig, Simulator
-from clonedrive.world.track import load_track
+from clonedrive.world.catalog import load_track
 
 STATE_ONLY = SimConfig(cameras=())
 STEP_S = 1.0 / 15.0

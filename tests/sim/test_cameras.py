@@ -8,7 +8,7 @@ import pytest
 from clonedrive.sim.cameras import UDACITY_RIG, CameraRig
 from clonedrive.sim.randomization import RandomizationConfig
 from clonedrive.sim.scene import Scene
-from clonedrive.world.track import load_track
+from clonedrive.world.catalog import load_track
 
 WIDTH, HEIGHT = 160, 80
 #: A straight on the lake track, before the bridge: s = 0..25 m.

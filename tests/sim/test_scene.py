@@ -4,7 +4,7 @@ import pytest
 from clonedrive.sim.cameras import CameraRig
 from clonedrive.sim.scene import RenderEngine, Scene
 from clonedrive.sim.scenery import build_scenery, find_bridge
-from clonedrive.world.track import load_track
+from clonedrive.world.catalog import load_track
 
 
 def render_start(scene, width=80, height=40):

@@ -4,14 +4,13 @@ import math
 import numpy as np
 import pytest
 
+from clonedrive.world.catalog import builtin_track_names, load_track
 from clonedrive.world.generate import generate
 from clonedrive.world.track import (
     MIN_DRIVABLE_RADIUS_M,
     Track,
     TrackError,
     TrackSpec,
-    builtin_track_names,
-    load_track,
 )
 
 

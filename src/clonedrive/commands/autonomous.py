@@ -30,13 +30,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from clonedrive.drive.client import (
+    from clonedrive.udacity.client import (
         AutonomousConfig,
         ClientConfig,
         DriveServerError,
         drive_autonomous,
     )
-    from clonedrive.world.track import TrackError, load_track
+    from clonedrive.world.catalog import load_track
+    from clonedrive.world.track import TrackError
 
     try:
         load_track(args.track)

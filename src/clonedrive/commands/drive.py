@@ -47,8 +47,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
         return 2
 
-    from clonedrive.drive.server import DriveServer
     from clonedrive.drivers.network import load_policy
+    from clonedrive.udacity.server import DriveServer
 
     try:
         policy = load_policy(

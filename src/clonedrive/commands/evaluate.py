@@ -44,7 +44,8 @@ def run(args) -> int:
 
     from clonedrive.drivers.network import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
-    from clonedrive.world.track import TrackError, load_track
+    from clonedrive.world.catalog import load_track
+    from clonedrive.world.track import TrackError
 
     tracks = args.track if args.track is not None else ([] if args.unseen else ["lake"])
     try:

@@ -69,7 +69,7 @@ NO_DISPLAY = (
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.sim.window import display_available
+    from clonedrive.manual.window import display_available
 
     scripted = args.screenshot is not None or args.steps is not None
     if args.windowed and not display_available():
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         host, port = _host_port(args.server)
         config = _manual_config(args, host, port)
         if args.track is not None:
-            from clonedrive.world.track import load_track
+            from clonedrive.world.catalog import load_track
 
             load_track(args.track)  # a bad name fails here, clearly, before a window opens
     except ValueError as error:  # TrackError is a ValueError
@@ -97,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     hold = tuple(key.strip().lower() for key in args.hold.split(",") if key.strip())
 
-    from clonedrive.sim.manual import DrivingSession
-    from clonedrive.sim.window import run_window
+    from clonedrive.manual.session import DrivingSession
+    from clonedrive.manual.window import run_window
 
     with DrivingSession(config, args.out) as session:
         try:
@@ -133,7 +133,7 @@ def _host_port(text: str) -> tuple[str, int]:
 
 
 def _manual_config(args: argparse.Namespace, host: str, port: int):
-    from clonedrive.sim.manual import ManualConfig
+    from clonedrive.manual.session import ManualConfig
 
     return ManualConfig(scenery=not args.no_scenery, seed=args.seed,
                         generated_seed=args.generated_seed, header=args.header,

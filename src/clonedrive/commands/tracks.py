@@ -29,7 +29,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from clonedrive.world.track import TrackError, builtin_track_names, load_track
+    from clonedrive.world.catalog import builtin_track_names, load_track
+    from clonedrive.world.track import TrackError
 
     names = args.track or builtin_track_names()
     out = Path(args.out)
@@ -42,7 +43,7 @@ def run(args) -> int:
             return 2
         row = track.summary()
         if not args.no_images:
-            from clonedrive.report.maps import plot_track_map
+            from clonedrive.evaluate.maps import plot_track_map
 
             safe = track.name.replace(":", "_")
             row["map_png"] = str(plot_track_map(track, out / f"{safe}_map.png"))

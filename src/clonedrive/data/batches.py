@@ -18,11 +18,13 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
-import keras
 import numpy as np
 
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
+from clonedrive.keras_backend import import_keras
+
+keras = import_keras()
 
 FRAME_SHAPE = (160, 320, 3)  # rows, columns, RGB
 FRAME_BYTES = int(np.prod(FRAME_SHAPE))

@@ -155,7 +155,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
     there). ``progress``: show a tqdm bar (stderr) by lap progress."""
     from clonedrive import __version__
     from clonedrive.sim.simulator import SimConfig, Simulator
-    from clonedrive.world.track import load_track
+    from clonedrive.world.catalog import load_track
 
     out = Path(out_dir).absolute()
     track = load_track(config.track)
@@ -261,7 +261,7 @@ class RowSink:
     ``submit`` blocks when ``MAX_PENDING_ROWS`` steps are waiting; ``close`` writes the rest.
     Image names follow ``start`` plus each observation's simulated ``time_s`` (see
     :func:`prepare_log_folder` for a start that continues an existing log). Used by
-    :func:`record` and by manual driving (:mod:`clonedrive.sim.manual`).
+    :func:`record` and by manual driving (:mod:`clonedrive.manual.session`).
     """
 
     def __init__(self, out: Path, start: datetime, *, header: bool = False,

@@ -175,7 +175,9 @@ def check_model(model: keras.Model) -> None:
 
 def load_model(path: str | Path) -> keras.Model:
     """Load a ``.keras`` or ``.h5`` steering model for inference (``safe_mode``, not compiled)."""
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     path = Path(path)
     if not path.is_file():

@@ -15,7 +15,9 @@ if TYPE_CHECKING:
 
 def build_tiny_model(seed: int = 0) -> keras.Model:
     """Rescaling -> Cropping2D -> one strided conv -> global average -> Dense(1), seeded weights."""
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
     from keras import layers
 
     inputs = keras.Input(shape=(160, 320, 3), name="center_rgb")

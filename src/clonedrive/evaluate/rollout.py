@@ -140,7 +140,7 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
 
 
 def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
-    from clonedrive.world.track import load_track
+    from clonedrive.world.catalog import load_track
 
     length = load_track(spec.track).length_m
     seconds = spec.laps * length / max(spec.speed_mph * MPH_TO_MPS * 0.85, 1.0)
@@ -231,7 +231,7 @@ def _save_frame(image: np.ndarray, path: Path) -> Path:
 
 
 def _finish(episode: _Episode, out: Path) -> dict:
-    from clonedrive.report.maps import plot_track_map
+    from clonedrive.evaluate.maps import plot_track_map
 
     trace = episode.trace
     summary = trace.summary()

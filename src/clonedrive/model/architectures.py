@@ -26,9 +26,12 @@ order); ``data_format="channels_last"`` gives the literal layer sequence of the 
 
 from __future__ import annotations
 
-import keras
 import numpy as np
-from keras import layers
+
+from clonedrive.keras_backend import import_keras
+
+keras = import_keras()
+layers = keras.layers
 
 IMAGE_HEIGHT = 160
 IMAGE_WIDTH = 320

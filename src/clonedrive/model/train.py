@@ -144,7 +144,9 @@ def train(
     match the saved ``config.json`` except for ``epochs``, ``early_stopping_patience`` and
     ``workers``. Without it, ``out_dir`` must not hold a previous run.
     """
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     from clonedrive.data.augment import AugmentConfig
     from clonedrive.data.batches import DrivingBatches
@@ -211,7 +213,9 @@ def train(
 
 def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike) -> Path:
     """Save the model at ``keras_path`` in the legacy HDF5 format (atomically)."""
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     h5_path = Path(h5_path)
     model = keras.saving.load_model(keras_path, safe_mode=True, compile=False)
@@ -413,7 +417,9 @@ def _counts_text(counts: dict[str, int]) -> str:
 
 def _run_recorder_class():
     """The Keras callback class that records a run (built on first use: keras is heavy)."""
-    import keras
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
 
     class RunRecorder(keras.callbacks.Callback):
         """After every epoch: last.keras, model.keras if best, history.csv, loss.png, state.json

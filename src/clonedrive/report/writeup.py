@@ -1140,7 +1140,8 @@ def _total_row(label: str, runs: list[dict], totals: dict | None) -> tuple[str, 
 def _where(track_name: str | None, event: dict, tracks: dict) -> dict:
     """The road where an event happened: a left or right bend (with radius) or a straight.
     ``tracks`` caches loaded tracks by name."""
-    from clonedrive.world.track import TrackError, load_track
+    from clonedrive.world.catalog import load_track
+    from clonedrive.world.track import TrackError
 
     unknown = {"text": "–", "short": "", "bend": None, "outside": None}
     if not track_name:

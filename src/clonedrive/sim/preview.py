@@ -15,7 +15,8 @@ import numpy as np
 
 from clonedrive.config import write_bytes_atomic
 from clonedrive.sim.scenery import find_bridge, longest_run
-from clonedrive.world.track import Track, load_track
+from clonedrive.world.catalog import load_track
+from clonedrive.world.track import Track
 
 #: The car stands this far [m] before a curve's apex or a crest, so the feature is in view.
 _LEAD_M = 14.0

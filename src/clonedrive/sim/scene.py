@@ -44,7 +44,8 @@ from clonedrive.sim.randomization import (
     sample_appearance,
 )
 from clonedrive.sim.scenery import TREE_ATLAS_KINDS, Scenery, build_scenery
-from clonedrive.world.track import Track, load_track
+from clonedrive.world.catalog import load_track
+from clonedrive.world.track import Track
 
 #: Camera clipping planes [m]. Nothing beyond FAR_M is drawn; the sky cylinder is just inside.
 NEAR_M = 0.2

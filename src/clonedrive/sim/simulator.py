@@ -18,7 +18,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from clonedrive.world.track import Track, load_track, wrap_angle
+from clonedrive.world.catalog import load_track
+from clonedrive.world.track import Track, wrap_angle
 from clonedrive.world.vehicle import (
     MPH_TO_MPS,
     Controls,

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -360,32 +359,3 @@ class Track:
 def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray:
     """Wrap angle(s) to [-pi, pi)."""
     return np.mod(np.asarray(angle_rad) + math.pi, 2.0 * math.pi) - math.pi
-
-
-def builtin_track_names() -> list[str]:
-    folder = resources.files("clonedrive.world") / "tracks"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json"))
-
-
-def load_track(name_or_path: str | Path) -> Track:
-    """A track by built-in name (``lake``), generated name (``gen:17``) or JSON file path."""
-    name = str(name_or_path)
-    if name.startswith("gen:"):
-        from clonedrive.world.generate import generate
-
-        try:
-            seed = int(name[4:])
-        except ValueError:
-            raise TrackError(f"{name!r}: generated tracks are named gen:<integer seed>") from None
-        return generate(seed)
-    if name in builtin_track_names():
-        folder = resources.files("clonedrive.world") / "tracks"
-        with resources.as_file(folder / f"{name}.json") as path:
-            return Track.from_file(path)
-    path = Path(name)
-    if path.suffix == ".json" or path.exists():
-        return Track.from_file(path)
-    raise TrackError(
-        f"unknown track {name!r}: use one of {', '.join(builtin_track_names())}, gen:<seed>, "
-        "or a path to a track .json file"
-    )

@@ -19,10 +19,10 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, ConnectionClosedError, InvalidStatus
 
-from clonedrive.drive import protocol
-from clonedrive.drive.server import DriveServer
 from clonedrive.drivers.network import NetworkPolicy, load_policy
 from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.udacity import protocol
+from clonedrive.udacity.server import DriveServer
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 NUMBER = r"(-?\d+(?:\.\d+)?)"

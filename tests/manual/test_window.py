@@ -11,9 +11,9 @@ import numpy as np
 
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
-from clonedrive.sim.manual import DrivingSession, ManualConfig
+from clonedrive.manual.session import DrivingSession, ManualConfig
+from clonedrive.manual.window import WINDOW_SIZE, run_window
 from clonedrive.sim.simulator import SimConfig
-from clonedrive.sim.window import WINDOW_SIZE, run_window
 
 WIDTH, HEIGHT = WINDOW_SIZE
 VIEW_HEIGHT = WIDTH // 2

@@ -23,8 +23,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clonedrive.drive import protocol
-from clonedrive.drive.client import (
+from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.sim.simulator import Controls
+from clonedrive.udacity import protocol
+from clonedrive.udacity.client import (
     AutonomousConfig,
     ClientConfig,
     DriveServerError,
@@ -32,10 +35,7 @@ from clonedrive.drive.client import (
     drive_autonomous,
     parse_steer,
 )
-from clonedrive.drive.server import DriveServer
-from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_tiny_model
-from clonedrive.sim.simulator import Controls
+from clonedrive.udacity.server import DriveServer
 
 UDACITY_STYLE_SERVER = Path(__file__).with_name("udacity_style_server.py")
 SERVER_START_TIMEOUT_S = 120.0  # the subprocess imports keras + torch and loads the model

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.config import atomic_path
-from clonedrive.sim.manual import GAMEPAD_AXES, MENU, DrivingSession
+from clonedrive.manual.session import GAMEPAD_AXES, MENU, DrivingSession
 
 #: Window size [px] (fixed): the camera view (2:1, like the 320x160 images) above a HUD panel.
 WINDOW_SIZE = (960, 640)
@@ -293,7 +293,7 @@ class DrivingWindow:
     def _refresh_menu(self) -> None:
         session = self.session
         self.menu_text.node().set_text("\n".join(session.menu_lines()))
-        from clonedrive.sim.manual import HELP_MENU
+        from clonedrive.manual.session import HELP_MENU
 
         self.menu_help.node().set_text(HELP_MENU)
         item = session.menu_items[session.menu_index].track
@@ -304,7 +304,8 @@ class DrivingWindow:
         """The chosen track's outline, fitted into the menu's right half, with the start."""
         from panda3d.core import LineSegs
 
-        from clonedrive.world.track import TrackError, load_track
+        from clonedrive.world.catalog import load_track
+        from clonedrive.world.track import TrackError
 
         self._map_track = track_name
         self.map_node.node().remove_all_children()

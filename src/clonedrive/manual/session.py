@@ -5,12 +5,12 @@ training mode, without the window.
 ``arrow_left``, ``a``, ``escape``...), the mouse pointer's horizontal position in [-1, 1], gamepad
 axes -- and steps a :class:`~clonedrive.sim.simulator.Simulator` one control period (1/15 s of
 simulated time) per :meth:`DrivingSession.step`. The Panda3D window
-(:mod:`clonedrive.sim.window`) only forwards events and draws what the session exposes, so all of
+(:mod:`clonedrive.manual.window`) only forwards events and draws what the session exposes, so all of
 this runs, and is tested, without a display.
 
 Modes: ``menu`` (choose a track and direction) -> ``driving`` (a human steers) <->
 ``autonomous`` (a drive server steers, through
-:class:`~clonedrive.drive.client.SimulatorClient`, exactly as the Udacity simulator's autonomous
+:class:`~clonedrive.udacity.client.SimulatorClient`, exactly as the Udacity simulator's autonomous
 mode; a human holding a steering or throttle key takes over for as long as it is held, and the
 server is sent the manual-mode telemetry meanwhile). Recording is independent of the mode.
 
@@ -314,7 +314,8 @@ class DrivingSession:
 
     def _open_pending(self) -> None:
         from clonedrive.sim.simulator import Simulator
-        from clonedrive.world.track import TrackError, load_track
+        from clonedrive.world.catalog import load_track
+        from clonedrive.world.track import TrackError
 
         track_name, reverse = self._pending
         self._pending = None
@@ -352,7 +353,7 @@ class DrivingSession:
 
     def start_autonomous(self) -> bool:
         """Connect to the drive server and let it steer. False (and a message) if it cannot."""
-        from clonedrive.drive.client import ClientConfig, DriveServerError, SimulatorClient
+        from clonedrive.udacity.client import ClientConfig, DriveServerError, SimulatorClient
 
         if self.sim is None or self.mode != DRIVING:
             return False
@@ -511,7 +512,7 @@ class DrivingSession:
     def _server_controls(self, human: Controls) -> Controls:
         """The drive server's command for this step, or the human's while one takes over
         (the server then gets the manual-mode telemetry, as from the Udacity simulator)."""
-        from clonedrive.drive.client import DriveServerError
+        from clonedrive.udacity.client import DriveServerError
 
         obs = self.observation
         try:

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clonedrive.drive import protocol
 from clonedrive.sim.simulator import Controls
+from clonedrive.udacity import protocol
 
 logger = logging.getLogger("clonedrive.client")
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from clonedrive.data.driving_log import image_time, read_driving_log
-from clonedrive.sim.manual import (
+from clonedrive.manual.session import (
     AUTONOMOUS,
     DRIVING,
     GAMEPAD,
@@ -287,9 +287,9 @@ def test_autonomous_mode_without_a_server_says_so(tmp_path):
 
 
 def test_autonomous_mode_lets_a_drive_server_steer_and_a_key_take_over(tmp_path):
-    from clonedrive.drive.server import DriveServer
     from clonedrive.drivers.network import NetworkPolicy
     from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.udacity.server import DriveServer
 
     policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=9.0)
     with DriveServer(policy, port=0, status_interval_s=0) as server, \

@@ -4,7 +4,7 @@ The simulator connects to ``ws://127.0.0.1:4567/socket.io/?EIO=4&transport=webso
 one ``telemetry`` event per command it receives (lock-step). For each one the server decodes the
 center-camera JPEG (BGR -> RGB), asks the policy for ``(steering, throttle)`` and answers
 ``42["steer",{"steering_angle":"<str>","throttle":"<str>"}]``. The Engine.IO 3 / Socket.IO
-framing is done here by hand over a plain WebSocket (see :mod:`clonedrive.drive.protocol`), so
+framing is done here by hand over a plain WebSocket (see :mod:`clonedrive.udacity.protocol`), so
 events are accepted whether or not the client ever sent a Socket.IO CONNECT (the simulator never
 does -- the reason python-socketio 5 servers leave the car standing).
 
@@ -49,10 +49,10 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from clonedrive.config import write_bytes_atomic
-from clonedrive.drive import protocol
 from clonedrive.drivers.network import Policy
+from clonedrive.udacity import protocol
 
-logger = logging.getLogger("clonedrive.drive")
+logger = logging.getLogger("clonedrive.udacity")
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 4567

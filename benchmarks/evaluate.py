@@ -43,10 +43,11 @@ def main() -> None:
 
     from clonedrive.drivers.network import NetworkPolicy, load_model
     from clonedrive.model.architectures import build_model
+    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     model = load_model(sys.argv[1]) if len(sys.argv) > 1 else build_model("fast")
     policy = NetworkPolicy(model, set_speed_mph=20.0)
-    policy.predict_steering(np.zeros((8, 160, 320, 3), np.uint8))  # warm up
+    policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))  # warm up
     single, single_steps = closed_loop_steps_per_s(policy, 1, 40.0)
     batched, batched_steps = closed_loop_steps_per_s(policy, 8, 20.0)
     print("closed loop, lake, fast model, full scenery (includes scene build and map plots):")
@@ -57,8 +58,9 @@ def main() -> None:
 
     from clonedrive.udacity import protocol
     from clonedrive.udacity.server import DriveServer
+    from clonedrive.udacity_spec import SET_SPEED_MPH
 
-    seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=9.0)
+    seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=SET_SPEED_MPH)
     jpeg = sample_jpeg()
     server = DriveServer(seed_policy, port=0, status_interval_s=0)
     port = server.start()

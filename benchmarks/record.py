@@ -46,17 +46,18 @@ def time_state_only(steps: int) -> float:
 
 
 def time_jpeg(folder: Path, repeats: int) -> float:
-    """Seconds to write one rendered 320x160 RGB image as a JPEG (quality 75) the recorder's
-    way: BGR view, cv2.imwrite to a temp name, rename."""
+    """Seconds to write one rendered 320x160 RGB image as a JPEG at the recorder's quality, the
+    recorder's way: BGR view, cv2.imwrite to a temp name, rename."""
     import cv2
 
     from clonedrive.data.recorder import _write_jpeg
     from clonedrive.sim.simulator import SimConfig, Simulator
+    from clonedrive.udacity_spec import JPEG_QUALITY
 
     with Simulator("lake", SimConfig(cameras=("center",))) as sim:
         obs, _ = sim.reset(seed=0)
     image = obs.images["center"]
-    params = [cv2.IMWRITE_JPEG_QUALITY, 75]
+    params = [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY]
     start = time.perf_counter()
     for index in range(repeats):
         _write_jpeg(image, folder / f"center_{index}.jpg", params)

@@ -25,6 +25,7 @@ import numpy as np
 from clonedrive.drivers.network import NetworkPolicy, load_model
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
+from clonedrive.udacity_spec import IMAGE_SHAPE, JPEG_QUALITY, SET_SPEED_MPH
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "tests" / "fixtures" / "udacity" / "stationary" / "IMG"
 
@@ -45,8 +46,8 @@ def sample_jpeg() -> bytes:
     if files:
         return files[0].read_bytes()
     rng = np.random.default_rng(0)
-    image = rng.integers(0, 256, size=(160, 320, 3), dtype=np.uint8)
-    return protocol.encode_image(image, quality=75)
+    image = rng.integers(0, 256, size=IMAGE_SHAPE, dtype=np.uint8)
+    return protocol.encode_image(image, quality=JPEG_QUALITY)
 
 
 def percentile_ms(values_s: list[float], q: float) -> float:
@@ -123,7 +124,8 @@ def main() -> None:
         parts = executor.submit(time_parts, model, jpeg, args.messages).result()
 
     # The whole round trip through a real socket.
-    server = DriveServer(NetworkPolicy(model, set_speed_mph=9.0), port=0, status_interval_s=0)
+    server = DriveServer(NetworkPolicy(model, set_speed_mph=SET_SPEED_MPH), port=0,
+                         status_interval_s=0)
     port = server.start()
     try:
         frame = protocol.telemetry_frame(0.0, 0.0, 5.0, jpeg)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from clonedrive.config import save_config, write_json_atomic
+from clonedrive.udacity_spec import STEERING_CORRECTION
 
 
 @dataclass(frozen=True)
@@ -130,7 +131,7 @@ def _recipe_text(recordings, data_dir: Path) -> str:
     if sorted(names) == sorted(WRITEUP_FOLDERS):
         return writeup_recipe_text({name: data_dir / name for name in names})
     lines = ["# clonedrive demo --quick: centre driving only", "[defaults]",
-             'cameras = "all"', "correction = 0.2", "flip = true", ""]
+             'cameras = "all"', f"correction = {STEERING_CORRECTION}", "flip = true", ""]
     for name in names:
         lines += ["[[recording]]", f'name = "{name}"', f'path = "{(data_dir / name).as_posix()}"',
                   ""]

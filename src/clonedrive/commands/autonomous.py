@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.udacity_spec import PORT
+
 HELP = "let a drive server (clonedrive drive, or Udacity's drive.py) steer our simulated car"
 DESCRIPTION = (
     "Run the simulator headless in autonomous mode: connect to a drive server at "
@@ -19,7 +21,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--track", default="lake", help="lake, mountain, gen:<seed> or a .json")
     parser.add_argument("--laps", type=int, default=1, help="laps to drive")
     parser.add_argument("--host", default="127.0.0.1", help="drive server host")
-    parser.add_argument("--port", type=int, default=4567, help="drive server port")
+    parser.add_argument("--port", type=int, default=PORT, help="drive server port")
     parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="SECONDS",
                         help="keep retrying to reach the drive server this long (default 30)")
     parser.add_argument("--max-seconds", type=float, default=None,

@@ -6,6 +6,8 @@ import argparse
 import logging
 import sys
 
+from clonedrive.udacity_spec import PORT, SET_SPEED_MPH
+
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"
 DESCRIPTION = (
     "Load a Keras steering model (.keras, or legacy .h5) and answer the Udacity simulator's "
@@ -22,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "image_folder", nargs="?", default=None, help="save received frames in this folder"
     )
-    parser.add_argument("--speed", type=float, default=9.0, help="set speed, mph")
+    parser.add_argument("--speed", type=float, default=SET_SPEED_MPH, help="set speed, mph")
     parser.add_argument(
         "--slow-in-curves",
         action="store_true",
@@ -31,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--host", default="127.0.0.1", help="interface to bind; 0.0.0.0 serves other machines"
     )
-    parser.add_argument("--port", type=int, default=4567, help="TCP port (the simulator uses 4567)")
+    parser.add_argument("--port", type=int, default=PORT,
+                        help=f"TCP port (the simulator uses {PORT})")
     parser.add_argument(
         "--status-every", type=float, default=5.0, help="seconds between status lines; 0: none"
     )

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from clonedrive.udacity_spec import JPEG_QUALITY
+
 HELP = "record the expert driving a track as a Udacity-format log (driving_log.csv + IMG/)"
 DESCRIPTION = (
     "Drive the expert autopilot around a track in the headless simulator and write OUT/"
@@ -27,7 +29,8 @@ def add_log_format_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the CSV header line (the Udacity simulator writes none)")
     parser.add_argument("--relative-paths", action="store_true",
                         help="write IMG/<name> instead of absolute image paths")
-    parser.add_argument("--jpeg-quality", type=int, default=75, help="JPEG quality 1-100")
+    parser.add_argument("--jpeg-quality", type=int, default=JPEG_QUALITY,
+                        help="JPEG quality 1-100")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

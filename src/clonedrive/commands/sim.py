@@ -8,6 +8,7 @@ import sys
 from dataclasses import asdict
 
 from clonedrive.commands.record import add_log_format_arguments
+from clonedrive.udacity_spec import PORT
 
 HELP = "drive a track yourself in a window (keyboard, mouse or gamepad) and record it"
 DESCRIPTION = (
@@ -47,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keys held from the start, comma-separated Panda3D names "
                              "(w, arrow_left, ...): for scripted runs")
     parser.add_argument("--record", action="store_true", help="start recording at once")
-    parser.add_argument("--server", default="127.0.0.1:4567",
+    parser.add_argument("--server", default=f"127.0.0.1:{PORT}",
                         help="HOST:PORT of the drive server autonomous mode (P) connects to")
     parser.add_argument("--seed", type=int, default=0, help="the scene's seed")
     parser.add_argument("--generated-seed", type=int, default=1,
@@ -128,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
 def _host_port(text: str) -> tuple[str, int]:
     host, separator, port = text.rpartition(":")
     if not separator or not host or not port.isdigit():
-        raise ValueError(f"--server {text!r}: expected HOST:PORT, e.g. 127.0.0.1:4567")
+        raise ValueError(f"--server {text!r}: expected HOST:PORT, e.g. 127.0.0.1:{PORT}")
     return host, int(port)
 
 

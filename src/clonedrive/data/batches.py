@@ -23,10 +23,10 @@ import numpy as np
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
 from clonedrive.keras_backend import import_keras
+from clonedrive.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 
 keras = import_keras()
 
-FRAME_SHAPE = (160, 320, 3)  # rows, columns, RGB
 FRAME_BYTES = int(np.prod(FRAME_SHAPE))
 #: Caches larger than this go to a memmap file when a folder for it is given, bytes.
 DEFAULT_MEMORY_LIMIT_BYTES = 2 * 1024**3

@@ -26,14 +26,14 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from clonedrive.udacity_spec import IMAGE_SHAPE
+
 CAMERAS = ("center", "left", "right")
 CSV_NAME = "driving_log.csv"
 IMAGE_FOLDER = "IMG"
 FIELD_NAMES = ("center", "left", "right", "steering", "throttle", "brake", "speed")
 HEADER_LINE = ",".join(FIELD_NAMES)
 
-# Udacity images are 320x160 RGB: (rows, columns, channels) as OpenCV returns them.
-IMAGE_SHAPE = (160, 320, 3)
 # Values this far outside their range still count as in range (float32 printing noise);
 # they are clamped to the range.
 RANGE_TOLERANCE = 1e-3

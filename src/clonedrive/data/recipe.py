@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
+from clonedrive.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 
 try:
     import tomllib
@@ -50,9 +51,9 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as the "tomli" packa
     import tomli as tomllib
 
 CAMERA_MODES = ("center", "all")
-DEFAULT_CORRECTION = 0.2
+DEFAULT_CORRECTION = STEERING_CORRECTION
 #: Sampling period assumed for a row whose image name carries no timestamp (15 Hz), seconds.
-FALLBACK_ROW_PERIOD_S = 1.0 / 15.0
+FALLBACK_ROW_PERIOD_S = 1.0 / CONTROL_HZ
 
 _TOP_KEYS = ("root", "defaults", "recording")
 _SETTING_KEYS = ("cameras", "correction", "steering_offset", "flip", "weight")
@@ -403,7 +404,7 @@ WRITEUP_RECIPE = string.Template(
 
 [defaults]
 cameras = "all"        # center + left/right cameras, side labels corrected by +-correction
-correction = 0.2
+correction = ${correction}
 flip = true            # mirrored copies with negated steering
 steering_offset = 0.0
 weight = 1.0
@@ -459,5 +460,6 @@ def writeup_recipe_text(folders: Mapping[str, str | os.PathLike]) -> str:
             + (f"; unknown: {', '.join(unknown)}" if unknown else "")
         )
     return WRITEUP_RECIPE.substitute(
-        {name: _toml_string(os.fspath(folders[name])) for name in WRITEUP_FOLDERS}
+        {name: _toml_string(os.fspath(folders[name])) for name in WRITEUP_FOLDERS},
+        correction=DEFAULT_CORRECTION,
     )

@@ -61,6 +61,7 @@ from clonedrive.data.driving_log import (
     read_driving_log,
 )
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+from clonedrive.udacity_spec import JPEG_QUALITY
 
 CONFIG_NAME = "config.json"
 HISTOGRAM_BINS = 11
@@ -85,7 +86,7 @@ class RecordConfig:
     header: bool = False  #: write the header line (the simulator writes none)
     relative_paths: bool = False  #: IMG/<name> instead of absolute paths
     offset_fraction: float = 0.6  #: left/right: fraction of the usable half-width off centre
-    jpeg_quality: int = 75  #: JPEG quality 1-100
+    jpeg_quality: int = JPEG_QUALITY  #: JPEG quality 1-100
     max_off_road_events: int = 3  #: stop early once the expert has left the road this often
     scenery: bool = True  #: trees, rocks... (False: road and terrain only)
     randomize: bool = False  #: domain randomisation of the scene's look
@@ -265,7 +266,7 @@ class RowSink:
     """
 
     def __init__(self, out: Path, start: datetime, *, header: bool = False,
-                 relative_paths: bool = False, jpeg_quality: int = 75,
+                 relative_paths: bool = False, jpeg_quality: int = JPEG_QUALITY,
                  fsync_every_rows: int = 15) -> None:
         if not 1 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100], got {jpeg_quality}")

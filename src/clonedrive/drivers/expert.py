@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clonedrive.sim.simulator import SimObservation
+from clonedrive.udacity_spec import CONTROL_HZ
 from clonedrive.world.track import Track
 from clonedrive.world.vehicle import (
     AIR_DENSITY_KGPM3,
@@ -74,7 +75,7 @@ class ExpertConfig:
     steering_rate_per_s: float = 2.5  #: steering can change at most this much per second
     speed_kp_per_s: float = 1.0  #: desired acceleration per m/s of speed error [1/s]
     speed_ki_per_s2: float = 0.3  #: integral gain [1/s^2]
-    control_hz: float = 15.0  #: rate at which act() is called [Hz]
+    control_hz: float = CONTROL_HZ  #: rate at which act() is called [Hz]
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:

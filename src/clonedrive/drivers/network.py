@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from clonedrive.udacity_spec import IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
+
 if TYPE_CHECKING:
     import keras
-
-IMAGE_SHAPE = (160, 320, 3)  # (height, width, channels) of the center camera, RGB
 
 
 class Policy(Protocol):
@@ -39,7 +39,8 @@ class SpeedController:
     (negative throttle brakes).
     """
 
-    def __init__(self, set_speed_mph: float = 9.0, *, kp: float = 0.1, ki: float = 0.002) -> None:
+    def __init__(self, set_speed_mph: float = SET_SPEED_MPH, *, kp: float = SPEED_KP,
+                 ki: float = SPEED_KI) -> None:
         self.set_speed_mph = set_speed_mph
         self.kp = float(kp)
         self.ki = float(ki)
@@ -84,11 +85,11 @@ class NetworkPolicy:
     def __init__(
         self,
         model: keras.Model,
-        set_speed_mph: float = 9.0,
+        set_speed_mph: float = SET_SPEED_MPH,
         slow_in_curves: bool = False,
         *,
-        kp: float = 0.1,
-        ki: float = 0.002,
+        kp: float = SPEED_KP,
+        ki: float = SPEED_KI,
         curve_gain: float = 1.5,
         min_speed_fraction: float = 0.4,
         batch_size: int = 64,

@@ -16,11 +16,12 @@ if TYPE_CHECKING:
 def build_tiny_model(seed: int = 0) -> keras.Model:
     """Rescaling -> Cropping2D -> one strided conv -> global average -> Dense(1), seeded weights."""
     from clonedrive.keras_backend import import_keras
+    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     keras = import_keras()
     from keras import layers
 
-    inputs = keras.Input(shape=(160, 320, 3), name="center_rgb")
+    inputs = keras.Input(shape=IMAGE_SHAPE, name="center_rgb")
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0)(inputs)
     x = layers.Cropping2D(cropping=((60, 20), (0, 0)))(x)
     x = layers.Conv2D(

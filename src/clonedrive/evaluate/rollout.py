@@ -19,6 +19,7 @@ import numpy as np
 
 from clonedrive.config import save_config, write_json_atomic
 from clonedrive.evaluate.metrics import RunTrace
+from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 #: Generated tracks used as unseen tracks start at this seed; recordings never use them.
@@ -128,7 +129,7 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
     report = {
         "model": model_path,
         "slow_in_curves": config.slow_in_curves,
-        "speed_control": "PI (kp 0.1, ki 0.002)"
+        "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed reduced with |steering|" if config.slow_in_curves
                             else ""),
         "runs": results,

@@ -48,6 +48,7 @@ from datetime import timedelta
 from pathlib import Path
 
 from clonedrive.sim.simulator import Controls, SimConfig, SimObservation
+from clonedrive.udacity_spec import JPEG_QUALITY, PORT
 
 #: Modes of a session.
 MENU, DRIVING, AUTONOMOUS = "menu", "driving", "autonomous"
@@ -88,9 +89,9 @@ class ManualConfig:
     generated_seed: int = 1  #: the menu's generated track is gen:<this>, G picks the next
     header: bool = False  #: recording: write the header line (the simulator writes none)
     relative_paths: bool = False  #: recording: IMG/<name> instead of absolute paths
-    jpeg_quality: int = 75  #: recording: JPEG quality 1-100
+    jpeg_quality: int = JPEG_QUALITY  #: recording: JPEG quality 1-100
     server_host: str = "127.0.0.1"  #: autonomous mode: the drive server
-    server_port: int = 4567
+    server_port: int = PORT
     connect_timeout_s: float = 2.0  #: give up connecting after this long (the window waits)
     reply_timeout_s: float = 10.0  #: a drive server silent this long ends autonomous mode
 
@@ -123,7 +124,7 @@ class ManualRecording:
     seed: int = 0
     header: bool = False
     relative_paths: bool = False
-    jpeg_quality: int = 75
+    jpeg_quality: int = JPEG_QUALITY
 
 
 @dataclass(frozen=True)

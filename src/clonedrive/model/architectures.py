@@ -29,13 +29,11 @@ from __future__ import annotations
 import numpy as np
 
 from clonedrive.keras_backend import import_keras
+from clonedrive.udacity_spec import IMAGE_SHAPE
 
 keras = import_keras()
 layers = keras.layers
 
-IMAGE_HEIGHT = 160
-IMAGE_WIDTH = 320
-IMAGE_SHAPE = (IMAGE_HEIGHT, IMAGE_WIDTH, 3)
 #: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels.
 CROP_TOP_PX = 80
 CROP_BOTTOM_PX = 25

@@ -48,6 +48,7 @@ from clonedrive.report.document import (
     to_html,
     to_markdown,
 )
+from clonedrive.udacity_spec import CONTROL_HZ
 
 logger = logging.getLogger(__name__)
 
@@ -225,7 +226,7 @@ def read_stills(video_path: str | os.PathLike, count: int = 3) -> list[tuple[flo
     try:
         if not capture.isOpened():
             return []
-        fps = capture.get(cv2.CAP_PROP_FPS) or 15.0
+        fps = capture.get(cv2.CAP_PROP_FPS) or CONTROL_HZ
         total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
         if total <= 0:
             return []

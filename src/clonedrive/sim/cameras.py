@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clonedrive.sim.scene import FAR_M, NEAR_M, Scene, texture_rgb
+from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,8 @@ class CameraRig:
         self,
         scene: Scene,
         cameras: Sequence[str] = ("center", "left", "right"),
-        width: int = 320,
-        height: int = 160,
+        width: int = IMAGE_WIDTH,
+        height: int = IMAGE_HEIGHT,
         *,
         mounts: Mapping[str, CameraMount] = UDACITY_RIG,
     ):

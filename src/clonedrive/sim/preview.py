@@ -15,6 +15,7 @@ import numpy as np
 
 from clonedrive.config import write_bytes_atomic
 from clonedrive.sim.scenery import find_bridge, longest_run
+from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track
 
@@ -84,8 +85,8 @@ def write_track_strip(
     path_png: str | os.PathLike,
     places: Sequence[tuple[str, float]] | None = None,
     *,
-    width: int = 320,
-    height: int = 160,
+    width: int = IMAGE_WIDTH,
+    height: int = IMAGE_HEIGHT,
 ) -> Path:
     """Render left/center/right frames at ``places`` ((label, s_m); default
     :func:`strip_places`) with the car on the centreline, and write one PNG, a labelled row per

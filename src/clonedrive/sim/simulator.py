@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track, wrap_angle
 from clonedrive.world.vehicle import (
@@ -37,11 +38,11 @@ __all__ = ["Controls", "OffRoadEvent", "SimConfig", "SimObservation", "Simulator
 class SimConfig:
     """How the simulator runs. Defaults match the Udacity simulator's recording rig."""
 
-    control_hz: float = 15.0  #: control (and camera) rate [Hz]: Udacity records at ~15 Hz
+    control_hz: float = CONTROL_HZ  #: control (and camera) rate [Hz]: Udacity records at ~15 Hz
     physics_hz: float = 150.0  #: physics sub-step rate [Hz], a multiple of control_hz
     cameras: tuple[str, ...] = ("center", "left", "right")  #: () = state only, no rendering
-    image_width: int = 320
-    image_height: int = 160
+    image_width: int = IMAGE_WIDTH
+    image_height: int = IMAGE_HEIGHT
     scenery: bool = True  #: trees, rocks, barriers... (off: road and terrain only)
     randomize: bool = False  #: domain randomisation of light, fog, tint, camera height, noise
     vehicle: VehicleParams = field(default_factory=VehicleParams)

@@ -34,11 +34,10 @@ import numpy as np
 
 from clonedrive.sim.simulator import Controls
 from clonedrive.udacity import protocol
+from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT
 
 logger = logging.getLogger("clonedrive.client")
 
-#: Degrees of wheel angle per unit of steering: telemetry reports the wheel angle in degrees.
-MAX_WHEEL_ANGLE_DEG = 25.0
 #: What the Unity simulator sends on closing: a Socket.IO DISCONNECT, then an Engine.IO close.
 CLOSE_FRAMES = ("41", "1")
 #: The biggest frame accepted from a server; a steer event is ~60 bytes.
@@ -52,12 +51,12 @@ class DriveServerError(RuntimeError):
 @dataclass(frozen=True)
 class ClientConfig:
     host: str = "127.0.0.1"
-    port: int = 4567
+    port: int = PORT
     #: Keep retrying a refused connection this long (drive.py listens only once its model
     #: is loaded, which takes a while).
     connect_timeout_s: float = 30.0
     reply_timeout_s: float = 30.0  #: a server that does not answer stalls the car: give up
-    jpeg_quality: int = 75  #: the simulator's Texture2D.EncodeToJPG default
+    jpeg_quality: int = JPEG_QUALITY  #: the simulator's Texture2D.EncodeToJPG default
     #: Seconds between Engine.IO pings; None: the interval the server announced (25 s).
     ping_interval_s: float | None = None
     #: Telemetry events sent on open. The Unity socket.io component raises "open" both when

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH, JPEG_QUALITY
+
 # Engine.IO packet types (protocol 3).
 ENGINE_OPEN = "0"
 ENGINE_CLOSE = "1"
@@ -59,10 +61,6 @@ CONNECT_FRAME = "40"
 #: What the simulator sends in manual mode, and what the server answers.
 TELEMETRY_MANUAL_FRAME = '42["telemetry",null]'
 MANUAL_FRAME = '42["manual",{}]'
-
-#: The simulator's camera image, pixels.
-IMAGE_WIDTH = 320
-IMAGE_HEIGHT = 160
 
 _COMPACT = {"separators": (",", ":"), "ensure_ascii": True, "allow_nan": False}
 
@@ -361,8 +359,8 @@ def decode_image(
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def encode_image(image_rgb: np.ndarray, *, quality: int = 75) -> bytes:
-    """Encode uint8 RGB ``(H, W, 3)`` as JPEG (the simulator uses quality ~75)."""
+def encode_image(image_rgb: np.ndarray, *, quality: int = JPEG_QUALITY) -> bytes:
+    """Encode uint8 RGB ``(H, W, 3)`` as JPEG (by default at the simulator's quality)."""
     import cv2
 
     if image_rgb.dtype != np.uint8 or image_rgb.ndim != 3 or image_rgb.shape[2] != 3:

@@ -51,11 +51,12 @@ from websockets.http11 import Request, Response
 from clonedrive.config import write_bytes_atomic
 from clonedrive.drivers.network import Policy
 from clonedrive.udacity import protocol
+from clonedrive.udacity_spec import PORT
 
 logger = logging.getLogger("clonedrive.udacity")
 
 DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 4567
+DEFAULT_PORT = PORT
 #: A text frame longer than this (characters = bytes: frames are ASCII) gets the safe reply.
 MAX_MESSAGE_BYTES = 1 << 20
 #: ``websockets`` closes a connection (1009) that sends a message longer than this.

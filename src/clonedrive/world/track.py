@@ -19,9 +19,11 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.spatial import cKDTree
 
+from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
+
 #: Wheelbase [m] and maximum wheel angle [deg] that every track must be drivable with.
 DRIVABLE_WHEELBASE_M = 2.7
-DRIVABLE_MAX_WHEEL_ANGLE_DEG = 25.0
+DRIVABLE_MAX_WHEEL_ANGLE_DEG = MAX_WHEEL_ANGLE_DEG
 #: Smallest radius [m] a car with that wheelbase and wheel angle can follow at 10 mph
 #: (low-speed kinematic limit L / tan(delta_max)).
 MIN_DRIVABLE_RADIUS_M = DRIVABLE_WHEELBASE_M / math.tan(math.radians(DRIVABLE_MAX_WHEEL_ANGLE_DEG))

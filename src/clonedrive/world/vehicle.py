@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
+
 MPH_TO_MPS = 0.44704
 GRAVITY_MPS2 = 9.81
 AIR_DENSITY_KGPM3 = 1.2
@@ -33,7 +35,7 @@ class VehicleParams:
     C_f: float = 80_000.0  #: front axle cornering stiffness [N/rad]
     C_r: float = 90_000.0  #: rear axle cornering stiffness [N/rad]
     mu: float = 1.0  #: tyre-road friction coefficient on asphalt
-    max_wheel_angle_deg: float = 25.0
+    max_wheel_angle_deg: float = MAX_WHEEL_ANGLE_DEG
     top_speed_mps: float = 30.0 * MPH_TO_MPS
     max_reverse_speed_mps: float = 5.0 * MPH_TO_MPS
     reverse_below_mps: float = 5.0 * MPH_TO_MPS  #: negative throttle reverses below this speed

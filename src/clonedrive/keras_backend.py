@@ -4,10 +4,16 @@ Keras 3 reads its backend from ``KERAS_BACKEND`` or from ``"backend"`` in ``kera
 (``$KERAS_HOME/keras.json``, by default ``~/.keras/keras.json``). When the user set neither,
 clonedrive picks PyTorch (:data:`DEFAULT_BACKEND`), the fastest backend on these machines;
 whatever the user chose is respected.
+
+A ``keras.json`` naming a backend that is not installed is not a choice: the first ``import
+keras`` on a machine writes ``keras.json`` with ``"backend": "tensorflow"`` even when
+``KERAS_BACKEND`` says otherwise, so after one run every later one would fail with "No module
+named 'tensorflow'". Such a file is ignored.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import sys
@@ -25,7 +31,16 @@ def _keras_json_backend() -> str | None:
     except (OSError, ValueError):
         return None
     backend = config.get("backend") if isinstance(config, dict) else None
-    return backend if isinstance(backend, str) else None
+    if not isinstance(backend, str) or not _installed(backend):
+        return None
+    return backend
+
+
+def _installed(backend: str) -> bool:
+    """Whether the package behind a Keras backend name can be imported."""
+    package = {"tensorflow": "tensorflow", "jax": "jax", "torch": "torch", "numpy": "numpy",
+               "openvino": "openvino"}.get(backend)
+    return package is not None and importlib.util.find_spec(package) is not None
 
 
 def choose_backend() -> str:

@@ -15,6 +15,13 @@ events (``42["telemetry",{...}]``) in the default namespace and never sends CONN
 This module is pure framing (no sockets), shared by the drive server and by a client that plays
 the simulator's part. Payload values are strings on the wire, both ways: see
 :func:`telemetry_frame`, :func:`parse_telemetry` and :func:`steer_frame`.
+
+Locales: the simulator formats telemetry with its machine's culture (C# ``ToString("N4")``) and
+parses the reply with ``float.Parse`` in the same culture. On a comma-decimal machine (de-DE,
+fr-FR, ...) the speed arrives as ``"12,3456"``, and a reply ``"-0.0123"`` would be read with
+``.`` as a digit-group separator (-123). :func:`parse_telemetry` records which decimal separator
+the telemetry used (:attr:`Telemetry.decimal_separator`) and :func:`steer_frame` answers with the
+same one.
 """
 
 from __future__ import annotations
@@ -183,23 +190,43 @@ def event_of(packet: SocketPacket) -> tuple[str, list[Any]]:
 # --------------------------------------------------------------------------- payloads
 
 
-def format_number(value: float) -> str:
+#: The decimal separators a simulator's locale may use.
+DECIMAL_SEPARATORS = (".", ",")
+
+
+def _check_separator(decimal_separator: str) -> None:
+    if decimal_separator not in DECIMAL_SEPARATORS:
+        raise ValueError(f"decimal separator {decimal_separator!r}; expected '.' or ','")
+
+
+def format_number(value: float, decimal_separator: str = ".") -> str:
     """A command value as the simulator parses it (``float.Parse``): plain decimal, no exponent.
 
-    Six decimals at most, trailing zeros dropped: ``0.2``, ``-0.0123``, ``0``, ``1``.
+    Six decimals at most, trailing zeros dropped: ``0.2``, ``-0.0123``, ``0``, ``1``; with
+    ``decimal_separator=","`` (a comma-decimal simulator): ``0,2``, ``-0,0123``. No digit-group
+    separators ever (values are at most a few units).
     """
+    _check_separator(decimal_separator)
     value = float(value)
     if not math.isfinite(value):
         raise ValueError(f"cannot send a non-finite value ({value})")
     text = f"{value:.6f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
+    text = "0" if text in ("-0", "") else text
+    return text.replace(".", decimal_separator)
 
 
-def steer_frame(steering: float, throttle: float) -> str:
-    """``42["steer",{"steering_angle":"<str>","throttle":"<str>"}]``; values are strings."""
+def steer_frame(steering: float, throttle: float, decimal_separator: str = ".") -> str:
+    """``42["steer",{"steering_angle":"<str>","throttle":"<str>"}]``; values are strings.
+
+    ``decimal_separator``: the one the simulator's telemetry used
+    (:attr:`Telemetry.decimal_separator`), so that its ``float.Parse`` reads the value right.
+    """
     return encode_event(
         "steer",
-        {"steering_angle": format_number(steering), "throttle": format_number(throttle)},
+        {
+            "steering_angle": format_number(steering, decimal_separator),
+            "throttle": format_number(throttle, decimal_separator),
+        },
     )
 
 
@@ -215,6 +242,8 @@ class Telemetry:
     throttle: float  # 0..1
     speed_mph: float
     image_jpeg: bytes  # the center camera, JPEG
+    #: "," when the simulator's locale writes decimal commas (``"12,3456"``), else "."
+    decimal_separator: str = "."
 
 
 TELEMETRY_FIELDS = ("steering_angle", "throttle", "speed", "image")
@@ -272,22 +301,49 @@ def parse_telemetry(payload: Any) -> Telemetry:
         jpeg = base64.b64decode(image, validate=True)
     except (binascii.Error, ValueError) as error:
         raise TelemetryError("bad_base64", f"field 'image' is not base64 ({error})") from None
+    numbers = [payload[key] for key in ("steering_angle", "throttle", "speed")]
     return Telemetry(
-        steering_angle_deg=parse_number(payload["steering_angle"], "steering_angle"),
-        throttle=parse_number(payload["throttle"], "throttle"),
-        speed_mph=parse_number(payload["speed"], "speed"),
+        steering_angle_deg=parse_number(numbers[0], "steering_angle"),
+        throttle=parse_number(numbers[1], "throttle"),
+        speed_mph=parse_number(numbers[2], "speed"),
         image_jpeg=jpeg,
+        decimal_separator=decimal_separator_of(numbers),
     )
 
 
+def decimal_separator_of(texts: list[Any]) -> str:
+    """``","`` if the simulator's numbers use decimal commas, else ``"."``.
+
+    Comma when some value contains a comma and none a point: ``N4`` always writes four decimals
+    (``"0,0000"``, ``"12,3456"``), and the values (angle in degrees, throttle, mph) never reach a
+    thousand, so a comma there is never a digit-group separator.
+    """
+    strings = [text for text in texts if isinstance(text, str)]
+    if any("," in text for text in strings) and not any("." in text for text in strings):
+        return ","
+    return "."
+
+
 def telemetry_frame(
-    steering_angle_deg: float, throttle: float, speed_mph: float, image_jpeg: bytes
+    steering_angle_deg: float,
+    throttle: float,
+    speed_mph: float,
+    image_jpeg: bytes,
+    decimal_separator: str = ".",
 ) -> str:
-    """A telemetry event exactly as the simulator sends it (``N4`` strings, base64 JPEG)."""
+    """A telemetry event exactly as the simulator sends it (``N4`` strings, base64 JPEG).
+
+    ``decimal_separator=","``: as a simulator on a comma-decimal machine sends it (``"12,3456"``).
+    """
+    _check_separator(decimal_separator)
+
+    def n4(value: float) -> str:
+        return f"{value:.4f}".replace(".", decimal_separator)
+
     payload = {
-        "steering_angle": f"{steering_angle_deg:.4f}",
-        "throttle": f"{throttle:.4f}",
-        "speed": f"{speed_mph:.4f}",
+        "steering_angle": n4(steering_angle_deg),
+        "throttle": n4(throttle),
+        "speed": n4(speed_mph),
         "image": base64.b64encode(image_jpeg).decode("ascii"),
     }
     return encode_event("telemetry", payload)

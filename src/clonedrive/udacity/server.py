@@ -353,7 +353,7 @@ class DriveServer:
             steering, throttle, save_error = await loop.run_in_executor(
                 self._executor, self._drive, telemetry
             )
-            reply = protocol.steer_frame(steering, throttle)
+            reply = protocol.steer_frame(steering, throttle, telemetry.decimal_separator)
         except protocol.TelemetryError as error:
             return self._safe(error.reason, error.detail)
         except Exception as error:  # a failing policy must not take the server down

@@ -9,12 +9,28 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
 T = TypeVar("T")
+
+#: Largest JSON file :func:`read_json` reads unless the caller sets its own limit [bytes].
+MAX_JSON_BYTES = 16 << 20
+#: Deepest nesting of arrays and objects :func:`read_json` accepts.
+MAX_JSON_DEPTH = 32
+#: Longest number literal :func:`read_json` accepts [characters]; a double has 17 digits.
+MAX_JSON_NUMBER_CHARS = 40
+_BYTE_ORDER_MARKS = (
+    (b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+    (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"),
+)
+
+
+class JsonFileError(ValueError):
+    """A JSON file that cannot be read; the message names the file and the problem."""
 
 
 def config_from_dict(cls: type[T], values: dict[str, Any], *, source: str = "config") -> T:
@@ -88,8 +104,89 @@ def save_config(config: Any, path: str | os.PathLike, **extra: Any) -> Path:
 def load_config(cls: type[T], path: str | os.PathLike) -> T:
     """Load a config dataclass saved by :func:`save_config` (extra top-level keys ignored
     only if they were saved as extras is not supported: every key must be a field)."""
-    with open(path, encoding="utf-8") as handle:
-        values = json.load(handle)
+    values = read_json(path, what="config file")
     if not isinstance(values, dict):
         raise ValueError(f"{path}: expected a JSON object")
     return config_from_dict(cls, values, source=str(path))
+
+
+def read_json(path: str | os.PathLike, *, max_bytes: int = MAX_JSON_BYTES,
+              what: str = "JSON file") -> Any:
+    """The value in the UTF-8 JSON file ``path``, read with bounded memory and time.
+
+    Refused with one :class:`JsonFileError` line naming ``path`` (``what`` says what the file
+    should have been): a folder, a file over ``max_bytes`` (checked before reading it), UTF-16
+    or UTF-32 text, binary data, text that is not UTF-8, nesting deeper than
+    :data:`MAX_JSON_DEPTH`, a number longer than :data:`MAX_JSON_NUMBER_CHARS` characters,
+    ``NaN``/``Infinity``, or invalid JSON. A missing file raises ``FileNotFoundError``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise JsonFileError(f"{path}: is a folder; expected a {what}")
+    if path.exists() and not path.is_file():
+        raise JsonFileError(f"{path}: is not a regular file; expected a {what}")
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(max_bytes + 1)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such {what}") from None
+    if len(data) > max_bytes:
+        raise JsonFileError(
+            f"{path}: larger than the {_size_text(max_bytes)} a {what} may be; not a {what}?")
+    for mark, encoding in _BYTE_ORDER_MARKS:
+        if data.startswith(mark):
+            raise JsonFileError(f"{path}: {encoding} text (byte-order mark); save it as UTF-8")
+    if b"\x00" in data[:4096]:
+        wide = data[:2].count(b"\x00") == 1 and data[:4096].count(b"\x00") * 3 > len(data[:4096])
+        detail = "UTF-16 text without a byte-order mark; save it as UTF-8" if wide else \
+            f"binary data (NUL bytes), not a {what}"
+        raise JsonFileError(f"{path}: {detail}")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise JsonFileError(
+            f"{path}: not UTF-8 text (bad byte at offset {error.start}); not a {what}?") from None
+
+    def number(kind: type) -> Any:
+        def parse(literal: str) -> Any:
+            if len(literal) > MAX_JSON_NUMBER_CHARS:
+                raise JsonFileError(
+                    f"{path}: a number of {len(literal)} characters ({literal[:12]}...); "
+                    f"at most {MAX_JSON_NUMBER_CHARS} are accepted")
+            return kind(literal)
+        return parse
+
+    def constant(name: str) -> Any:
+        raise JsonFileError(f"{path}: {name} is not a JSON number; use a finite number")
+
+    try:
+        value = json.loads(text, parse_int=number(int), parse_float=number(float),
+                           parse_constant=constant)
+    except json.JSONDecodeError as error:
+        raise JsonFileError(f"{path}: not valid JSON ({error})") from None
+    except RecursionError:  # the C decoder stops at the interpreter's recursion limit
+        value, depth = None, sys.getrecursionlimit()
+    else:
+        depth = _json_depth(value)
+    if depth > MAX_JSON_DEPTH:
+        raise JsonFileError(
+            f"{path}: nested {'more than ' if value is None else ''}{depth} levels deep; "
+            f"a {what} is nested at most {MAX_JSON_DEPTH} levels")
+    return value
+
+
+def _json_depth(value: Any) -> int:
+    """Deepest nesting of lists and dicts in a decoded JSON value (iterative, no recursion)."""
+    deepest = 0
+    pending = [(value, 1)] if isinstance(value, (list, dict)) else []
+    while pending:
+        item, depth = pending.pop()
+        deepest = max(deepest, depth)
+        children = item.values() if isinstance(item, dict) else item
+        pending.extend((child, depth + 1) for child in children
+                       if isinstance(child, (list, dict)))
+    return deepest
+
+
+def _size_text(count: int) -> str:
+    return f"{count / (1 << 20):g} MiB" if count >= 1 << 20 else f"{count / 1024:g} KiB"

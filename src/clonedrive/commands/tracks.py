@@ -29,12 +29,17 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
+    from clonedrive.paths import inside, safe_stem
     from clonedrive.world.catalog import builtin_track_names, load_track
     from clonedrive.world.track import TrackError
 
     names = args.track or builtin_track_names()
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        print(f"error: --out {out} is a file; give a folder for the maps", file=sys.stderr)
+        return 2
     rows = []
+    stems: set[str] = set()
     for name in names:
         try:
             track = load_track(name)
@@ -45,10 +50,11 @@ def run(args) -> int:
         if not args.no_images:
             from clonedrive.evaluate.maps import plot_track_map
 
-            safe = track.name.replace(":", "_")
-            row["map_png"] = str(plot_track_map(track, out / f"{safe}_map.png"))
+            # The name comes from the track file: one safe component, distinct per track.
+            stem = _unused(safe_stem(track.name, fallback="track"), stems)
+            row["map_png"] = str(plot_track_map(track, inside(out, f"{stem}_map.png")))
             if not args.no_strip:
-                strip = _write_strip(track, out / f"{safe}_cameras.png")
+                strip = _write_strip(track, inside(out, f"{stem}_cameras.png"))
                 if strip is not None:
                     row["cameras_png"] = str(strip)
         rows.append(row)
@@ -67,6 +73,16 @@ def run(args) -> int:
             if key in row:
                 print(f"wrote {row[key]}")
     return 0
+
+
+def _unused(stem: str, used: set[str]) -> str:
+    """``stem``, or ``stem-2``, ``stem-3``... if an earlier track took it; added to ``used``."""
+    candidate, number = stem, 1
+    while candidate in used:
+        number += 1
+        candidate = f"{stem}-{number}"
+    used.add(candidate)
+    return candidate
 
 
 def _write_strip(track, path):

@@ -6,11 +6,15 @@ right of the centreline in the driving direction.
 
 A track is loaded from a JSON file (format in DESIGN.md) into a :class:`TrackSpec`, validated, and
 turned into a :class:`Track` that answers geometric queries, vectorised over points.
+
+Every input is bounded before anything is allocated in proportion to it: the file's size
+(:data:`MAX_TRACK_FILE_BYTES`), the number of control points (:data:`MAX_CONTROL_POINTS`), their
+coordinates (:data:`MAX_COORDINATE_M`) and the track's length (:data:`MAX_TRACK_LENGTH_M`); a
+track outside them is refused with a message naming the limit.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +23,7 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.spatial import cKDTree
 
+from clonedrive.config import JsonFileError, read_json
 from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 #: Wheelbase [m] and maximum wheel angle [deg] that every track must be drivable with.
@@ -31,6 +36,20 @@ MIN_DRIVABLE_RADIUS_M = DRIVABLE_WHEELBASE_M / math.tan(math.radians(DRIVABLE_MA
 TRACK_KEYS = ("name", "version", "theme", "width_m", "closed", "centerline")
 THEMES = ("lake", "mountain")
 _SAMPLE_STEP_M = 0.5
+
+#: Largest track file read [bytes]; the mountain track's 382 points take 15 KB.
+MAX_TRACK_FILE_BYTES = 2 << 20
+#: Most centreline control points a track may have.
+MAX_CONTROL_POINTS = 10_000
+#: Largest |x|, |y| or |z| of a control point [m]: the world is 20 km across.
+MAX_COORDINATE_M = 10_000.0
+#: Longest track [m] (the lake is 1.2 km, the mountain 2.6 km): bounds every table along it.
+MAX_TRACK_LENGTH_M = 20_000.0
+#: Longest track name [characters].
+MAX_TRACK_NAME_CHARS = 200
+#: The newest track version this code knows (tracks count versions from 1, bumped with their
+#: geometry: the built-in files and the generator); a file with a newer one is refused.
+NEWEST_TRACK_VERSION = 2
 
 
 class TrackError(ValueError):
@@ -61,21 +80,36 @@ class TrackSpec:
         missing = [key for key in ("name", "centerline") if key not in data]
         if missing:
             raise TrackError(f"{source}: missing key(s) {', '.join(missing)}")
+        name = data["name"]
+        if not isinstance(name, str) or not 0 < len(name) <= MAX_TRACK_NAME_CHARS:
+            raise TrackError(f"{source}: name must be a text of 1 to {MAX_TRACK_NAME_CHARS} "
+                             f"characters, got {_short(name)}")
+        version = data.get("version", 1)
+        if not _is_integer(version) or version < 1:
+            raise TrackError(f"{source}: version must be a whole number >= 1, got "
+                             f"{_short(version)}")
+        if version > NEWEST_TRACK_VERSION:
+            raise TrackError(
+                f"{source}: track version {version} is newer than this clonedrive knows "
+                f"(1 to {NEWEST_TRACK_VERSION}); was it written by a newer clonedrive?")
         theme = data.get("theme", "lake")
         if theme not in THEMES:
             raise TrackError(f"{source}: theme {theme!r} is not one of {', '.join(THEMES)}")
         width = data.get("width_m", 8.0)
-        if not isinstance(width, (int, float)) or not 3.0 <= width <= 30.0:
+        if not _is_number(width) or not 3.0 <= width <= 30.0:
             raise TrackError(f"{source}: width_m must be a number in [3, 30] m, got {width!r}")
         if data.get("closed", True) is not True:
             raise TrackError(f"{source}: only closed tracks are supported (closed: true)")
         points = data["centerline"]
         if not isinstance(points, list):
             raise TrackError(f"{source}: centerline must be a list of [x, y, z] points")
+        if len(points) > MAX_CONTROL_POINTS:
+            raise TrackError(f"{source}: centerline has {len(points)} points; at most "
+                             f"{MAX_CONTROL_POINTS} are allowed")
         rows = []
         for index, point in enumerate(points):
             ok = isinstance(point, list) and len(point) in (3, 4)
-            ok = ok and all(isinstance(v, (int, float)) and math.isfinite(v) for v in point)
+            ok = ok and all(_is_number(v) and math.isfinite(v) for v in point)
             if not ok:
                 raise TrackError(
                     f"{source}: centerline point {index} is {point!r}; expected [x, y, z] or "
@@ -85,8 +119,8 @@ class TrackSpec:
         if len({len(row) for row in rows}) > 1:
             raise TrackError(f"{source}: centerline points mix 3 and 4 values; use one form")
         return cls(
-            name=str(data["name"]),
-            version=int(data.get("version", 1)),
+            name=name,
+            version=int(version),
             theme=theme,
             width_m=float(width),
             closed=True,
@@ -123,11 +157,15 @@ class Track:
         self.version = spec.version
         self.theme = spec.theme
         where = source or spec.name
+        if len(spec.centerline) > MAX_CONTROL_POINTS:
+            raise TrackError(f"{where}: centerline has {len(spec.centerline)} points; at most "
+                             f"{MAX_CONTROL_POINTS} are allowed")
         control = np.asarray(spec.centerline, dtype=float)
         if len(control) < 8:
             raise TrackError(
                 f"{where}: centerline has {len(control)} points; at least 8 are needed"
             )
+        _check_extent(control, where)
         if np.allclose(control[0, :2], control[-1, :2]):
             control = control[:-1]  # closing point repeated: the spline is periodic anyway
         widths = control[:, 3] if control.shape[1] == 4 else np.full(len(control), spec.width_m)
@@ -141,11 +179,11 @@ class Track:
         duplicate = np.flatnonzero(steps < 1e-6)
         if duplicate.size:
             raise TrackError(f"{where}: centerline points {duplicate[0]} and the next coincide")
-        self._build(control[:, :3], widths)
+        self._build(control[:, :3], widths, where)
         self._validate(where)
 
     # ------------------------------------------------------------------ construction
-    def _build(self, control: np.ndarray, widths: np.ndarray) -> None:
+    def _build(self, control: np.ndarray, widths: np.ndarray, where: str) -> None:
         closed = np.vstack([control, control[:1]])
         closed_w = np.append(widths, widths[0])
         tck, _ = splprep(
@@ -157,6 +195,9 @@ class Track:
         seg = np.linalg.norm(np.diff(np.vstack([fine, fine[:1]])[:, :2], axis=0), axis=1)
         s_fine = np.concatenate([[0.0], np.cumsum(seg)])
         self.length_m = float(s_fine[-1])
+        if self.length_m > MAX_TRACK_LENGTH_M:  # the spline swings wider than its points
+            raise TrackError(f"{where}: the centreline is {self.length_m / 1000:.1f} "
+                             f"km long; at most {MAX_TRACK_LENGTH_M / 1000:g} km are allowed")
         count = int(round(self.length_m / _SAMPLE_STEP_M))
         self.ds_m = self.length_m / count
         self.s = np.arange(count) * self.ds_m
@@ -218,13 +259,16 @@ class Track:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_file(cls, path: str | Path) -> Track:
+        """Read and validate a track file; any problem is one :class:`TrackError` line."""
         path = Path(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = read_json(path, max_bytes=MAX_TRACK_FILE_BYTES, what="track file")
         except FileNotFoundError:
             raise TrackError(f"{path}: no such track file") from None
-        except json.JSONDecodeError as error:
-            raise TrackError(f"{path}: not valid JSON ({error})") from None
+        except JsonFileError as error:
+            raise TrackError(str(error)) from None
+        except OSError as error:  # permissions, a name too long, an I/O error
+            raise TrackError(f"{path}: cannot read the track file ({error.strerror})") from None
         return cls(TrackSpec.from_dict(data, source=str(path)), source=str(path))
 
     # ------------------------------------------------------------------ arc-length queries
@@ -356,6 +400,37 @@ class Track:
             "min_radius_m": round(self.min_radius_m, 1),
             "max_grade": round(self.max_grade, 4),
         }
+
+
+def _check_extent(control: np.ndarray, where: str) -> None:
+    """Refuse control points beyond :data:`MAX_COORDINATE_M` or a control polygon longer than
+    :data:`MAX_TRACK_LENGTH_M`, before any table along the track is allocated."""
+    far = np.abs(control[:, :3]).max(axis=1)
+    beyond = np.flatnonzero(far > MAX_COORDINATE_M)
+    if beyond.size:
+        i = beyond[0]
+        raise TrackError(
+            f"{where}: centerline point {i} is {far[i]:.4g} m from the origin in x, y or z; "
+            f"coordinates are limited to +-{MAX_COORDINATE_M:g} m")
+    closed = np.vstack([control[:, :2], control[:1, :2]])
+    polygon_m = float(np.linalg.norm(np.diff(closed, axis=0), axis=1).sum())
+    if polygon_m > MAX_TRACK_LENGTH_M:
+        raise TrackError(
+            f"{where}: the centerline points span {polygon_m / 1000:.1f} km of road; at most "
+            f"{MAX_TRACK_LENGTH_M / 1000:g} km are allowed")
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_integer(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:37]}..."
 
 
 def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray:

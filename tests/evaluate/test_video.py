@@ -116,3 +116,19 @@ def test_video_writer_odd_size_and_abort(tmp_path: Path) -> None:
     # Closing without frames (e.g. in a finally block after a failure) writes nothing.
     assert VideoWriter(tmp_path / "none.mp4").close() is None
     assert not (tmp_path / "none.mp4").exists()
+
+
+def test_video_writer_composes_callables_off_the_loop_and_reports_their_errors(tmp_path):
+    path = tmp_path / "composed.mp4"
+    with VideoWriter(path, fps=10) as writer:
+        for index in range(4):
+            writer.append(lambda index=index: colour_frame(index, 64, 48))
+    meta, frames = decode_video(path)
+    assert meta["size"] == (64, 48) and len(frames) == 4
+    failing = VideoWriter(tmp_path / "failing.mp4", fps=10)
+    failing.append(lambda: colour_frame(0, 64, 48))
+    failing.append(lambda: np.zeros((10, 10), dtype=np.uint8))  # not RGB: fails on the thread
+    with pytest.raises(ValueError, match="uint8 RGB"):
+        failing.close()
+    assert not (tmp_path / "failing.mp4").exists()
+    assert list(tmp_path.glob(".failing*")) == []

@@ -181,10 +181,12 @@ def test_expand_counts_skipped_rows(tmp_path: Path) -> None:
     copy = tmp_path / "lake"
     shutil.copytree(LAKE, copy)
     rows = read_driving_log(copy).rows
-    rows[3].left.unlink()
+    rows[3].center.unlink()
+    rows[5].left.unlink()  # a missing side image turns that camera off for the row
     samples = expand(default_recipe_for([copy]))
     assert samples.skipped == {"image_missing": 1}
-    assert len(samples) == (len(rows) - 1) * 6
+    assert samples.side_images_missing == 1
+    assert len(samples) == (len(rows) - 2) * 6 + 4
     assert "lake:" in samples.skipped_details[0]
 
 

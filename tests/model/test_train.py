@@ -34,7 +34,7 @@ def damaged_recordings(tmp_path_factory) -> list[Path]:
         shutil.copytree(FIXTURES / name, root / name)
         folders.append(root / name)
     rows = read_driving_log(folders[0]).rows
-    rows[5].right.unlink()  # the reader skips this row (image_missing)
+    rows[5].center.unlink()  # the reader skips this row (image_missing)
     data = rows[9].left.read_bytes()
     rows[9].left.write_bytes(data[: len(data) // 3])  # exists, but only a third of a JPEG
     return folders

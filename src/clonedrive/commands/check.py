@@ -11,8 +11,11 @@ DESCRIPTION = (
     "Read DATA_DIR/driving_log.csv (any Udacity-format log: simulator-written or the sample data "
     "set, POSIX or Windows paths, header or none) and report rows, usable rows, rows skipped "
     "grouped by reason with their line numbers, a steering histogram, the mean speed and the "
-    "recording's duration. Every image is decoded unless --no-decode is given. Exit status 0 "
-    "when the log is readable (even with skipped rows), 1 when the CSV is missing."
+    "recording's duration. Rows whose left/right images are missing (center-only data sets) stay "
+    "usable for the cameras they have, and are counted; image files that more than one row "
+    "names (two recorders in one folder) are reported. Every image is decoded unless "
+    "--no-decode is given. Exit status 0 when the log is readable (even with skipped rows), 1 "
+    "when the CSV is missing or is not a driving log (UTF-16, an image, binary data)."
 )
 
 HISTOGRAM_BINS = 11
@@ -31,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.data.driving_log import read_driving_log
+    from clonedrive.data.driving_log import DrivingLogError, read_driving_log
 
     try:
         log = read_driving_log(
@@ -39,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
             verify_images="exists" if args.no_decode else "decode",
             progress=not args.json and sys.stderr.isatty(),
         )
-    except FileNotFoundError as error:
+    except (FileNotFoundError, DrivingLogError) as error:
         print(f"clonedrive check: {error}", file=sys.stderr)
         return 1
     summary = summarize(log)
@@ -59,6 +62,7 @@ def summarize(log) -> dict:
     from clonedrive.data.driving_log import image_time
 
     groups = log.skipped_by_reason()
+    shared = log.shared_images()
     steering = np.array([row.steering for row in log.rows], dtype=np.float64)
     speed = np.array([row.speed_mph for row in log.rows], dtype=np.float64)
     counts, edges = np.histogram(steering, bins=HISTOGRAM_BINS, range=(-1.0, 1.0))
@@ -75,6 +79,9 @@ def summarize(log) -> dict:
         "skipped_rows": {reason: [item.row for item in items] for reason, items in groups.items()},
         "images_missing": len(groups.get("image_missing", [])),
         "images_corrupt": len(groups.get("image_corrupt", [])),
+        "side_images_missing": log.side_images_missing,
+        "shared_images": len(shared),
+        "rows_sharing_images": sorted({row for rows in shared.values() for row in rows}),
         "steering_mean": float(steering.mean()) if has_rows else None,
         "steering_std": float(steering.std()) if has_rows else None,
         "steering_min": float(steering.min()) if has_rows else None,
@@ -98,6 +105,16 @@ def format_summary(log, summary: dict) -> str:
         f"rows: {summary['rows']}   usable: {summary['usable_rows']}   "
         f"skipped: {summary['rows'] - summary['usable_rows']}",
     ]
+    if summary["side_images_missing"]:
+        lines.append(f"  of the usable rows, {summary['side_images_missing']} have no left and/or "
+                     "right image (a center-only data set?): they are used for the cameras they "
+                     "have")
+    if summary["shared_images"]:
+        rows = summary["rows_sharing_images"]
+        numbers = ", ".join(str(row) for row in rows[:ROWS_SHOWN])
+        more = f" and {len(rows) - ROWS_SHOWN} more" if len(rows) > ROWS_SHOWN else ""
+        lines.append(f"image files named by more than one row: {summary['shared_images']} "
+                     f"(lines {numbers}{more}); two recorders wrote into one folder?")
     groups = log.skipped_by_reason()
     if groups:
         lines.append("skipped rows by reason:")

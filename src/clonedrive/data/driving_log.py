@@ -10,8 +10,12 @@ fields ``center,left,right,steering,throttle,brake,speed``:
   numbers as C# writes them (``0``, ``-0.2924528``, ``4.770404E-05``).
 
 The reader accepts every variant real users have (header or none, CRLF and LF mixed, blank lines,
-extra trailing spreadsheet columns) and never raises on a bad row: it skips the row and says why,
-with the 1-based line number. The writer appends one complete row per call and flushes it to disk,
+extra trailing spreadsheet columns, side-camera images left out of a shared data set) and never
+raises on a bad row: it skips the row and says why, with the 1-based line number. A row whose
+center image exists but whose left or right image does not is kept for the cameras it has
+(``LogRow.cameras``), and counted. A file that is not a log at all -- UTF-16 text, an image,
+binary data, larger than :data:`MAX_LOG_BYTES` -- raises :class:`DrivingLogError` naming it.
+The writer appends one complete row per call and flushes it to disk,
 so a killed recorder leaves a log whose every row is whole.
 """
 
@@ -22,7 +26,7 @@ import math
 import os
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from pathlib import Path
 
@@ -38,6 +42,14 @@ HEADER_LINE = ",".join(FIELD_NAMES)
 # they are clamped to the range.
 RANGE_TOLERANCE = 1e-3
 VERIFY_MODES = ("none", "exists", "decode")
+#: Largest driving_log.csv read [bytes]: about 1.3 million rows, a day of recording at 15 Hz.
+MAX_LOG_BYTES = 256 << 20
+#: Longest image file name [bytes] that file systems allow.
+MAX_NAME_BYTES = 255
+# What a file that is not a CSV starts with, and what it is then.
+_MAGIC = ((b"\xff\xd8\xff", "a JPEG image"), (b"\x89PNG", "a PNG image"),
+          (b"PK\x03\x04", "a zip file (a .keras model?)"), (b"\x89HDF", "an HDF5 file (a model?)"),
+          (b"GIF8", "a GIF image"))
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _NON_FINITE = re.compile(r"[+-]?(?:nan|inf|infinity|\u221e)", re.IGNORECASE)
@@ -67,6 +79,8 @@ class LogRow:
     throttle: float  # [0, 1]
     brake: float  # [0, 1]
     speed_mph: float
+    #: The cameras whose images are usable: all three, or fewer when a side image is missing.
+    cameras: tuple[str, ...] = CAMERAS
 
     def image(self, camera: str) -> Path:
         """The image path of ``camera`` (one of :data:`CAMERAS`)."""
@@ -80,13 +94,18 @@ class SkippedRow:
     """A row the reader could not use.
 
     ``reason`` is a category key: ``field_count``, ``non_numeric`` (includes NaN and infinity),
-    ``out_of_range``, ``image_missing``, ``image_corrupt``, ``image_size`` (decodes, but is not
-    320x160x3) or ``empty`` (a blank line).
+    ``out_of_range``, ``image_missing`` (the center image; a missing side image only turns that
+    camera off), ``image_name`` (longer than a file system allows), ``image_corrupt``,
+    ``image_size`` (decodes, but is not 320x160x3) or ``empty`` (a blank line).
     """
 
     row: int
     reason: str
     detail: str  # human sentence naming the field/file
+
+
+class DrivingLogError(ValueError):
+    """A file that cannot be read as a driving log at all; the message names it and says why."""
 
 
 @dataclass
@@ -101,6 +120,20 @@ class DrivingLog:
     has_header: bool
     # File-level notes that skip no row: not UTF-8, a repeated header line.
     warnings: list[str] = field(default_factory=list)
+
+    @property
+    def side_images_missing(self) -> int:
+        """Usable rows with a side camera off (its image missing): used for fewer cameras."""
+        return sum(1 for row in self.rows if len(row.cameras) < len(CAMERAS))
+
+    def shared_images(self) -> dict[Path, list[int]]:
+        """Image files that more than one usable row names -> those rows' line numbers (two
+        recorders writing into one folder overwrite each other's images)."""
+        users: dict[Path, list[int]] = {}
+        for row in self.rows:
+            for camera in row.cameras:
+                users.setdefault(row.image(camera), []).append(row.row)
+        return {path: rows for path, rows in users.items() if len(rows) > 1}
 
     def skipped_by_reason(self) -> dict[str, list[SkippedRow]]:
         """Skipped rows grouped by reason, reasons in order of first appearance."""
@@ -159,8 +192,10 @@ def read_driving_log(
         progress: show a tqdm progress bar (stderr) while verifying images.
 
     Raises:
-        FileNotFoundError: only if the CSV itself is missing. A bad row is skipped and reported
-        in ``DrivingLog.skipped``, never raised.
+        FileNotFoundError: if the CSV itself is missing.
+        DrivingLogError: if the file is not a log at all (UTF-16, an image, binary data, over
+            :data:`MAX_LOG_BYTES`). A bad row is skipped and reported in
+            ``DrivingLog.skipped``, never raised.
     """
     if verify_images not in VERIFY_MODES:
         raise ValueError(
@@ -174,7 +209,7 @@ def read_driving_log(
         )
     folder = csv_path.parent
     image_folder = folder / IMAGE_FOLDER
-    raw = csv_path.read_bytes()
+    raw = _read_log_bytes(csv_path)
     warnings: list[str] = []
     try:
         text = raw.decode("utf-8-sig")
@@ -215,6 +250,30 @@ def read_driving_log(
     )
 
 
+def _read_log_bytes(csv_path: Path) -> bytes:
+    """The CSV's bytes, after checking that it is small enough and looks like text."""
+    size = csv_path.stat().st_size
+    if size > MAX_LOG_BYTES:
+        raise DrivingLogError(
+            f"{csv_path}: {size / (1 << 20):.0f} MiB, larger than the "
+            f"{MAX_LOG_BYTES >> 20} MiB a driving log may be; not a log?")
+    with open(csv_path, "rb") as handle:
+        raw = handle.read(MAX_LOG_BYTES + 1)
+    head = raw[:4096]
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")) or (
+            b"\x00" in head and head.count(b"\x00") * 3 > len(head)
+            and (head[1:2] == b"\x00" or head[:1] == b"\x00")):
+        raise DrivingLogError(
+            f"{csv_path}: UTF-16 text detected; a driving log is UTF-8 (or ASCII) text: save "
+            "it again as UTF-8")
+    for magic, what in _MAGIC:
+        if head.startswith(magic):
+            raise DrivingLogError(f"{csv_path}: not a CSV file: it is {what}")
+    if b"\x00" in head:
+        raise DrivingLogError(f"{csv_path}: not a CSV file: binary data (NUL bytes)")
+    return raw
+
+
 def _lines(text: str) -> Iterator[tuple[int, str]]:
     """(1-based line number, line without its ending) for CRLF, LF or lone-CR endings."""
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
@@ -244,47 +303,40 @@ def _parse_row(line_number: int, fields: list[str], image_folder: Path) -> LogRo
                 f"numbers: {','.join(tail)!r} looks written in a comma-decimal locale "
                 "(0,5 for 0.5); record with a '.'-decimal locale or convert the file",
             )
-        numbers_in_extras = any(_NUMBER.fullmatch(item) for item in tail[4:])
-        if numbers_in_extras or not all(_NUMBER.fullmatch(item) for item in tail[:4]):
-            return SkippedRow(
-                line_number,
-                "field_count",
-                f"line {line_number} has {count} fields, expected 7, and fields 4-7 are not "
-                "the four numbers (a comma inside an image path?)",
-            )
-        # Otherwise: extra trailing columns (e.g. spreadsheet leftovers); keep the first seven.
+    # Extra trailing columns (spreadsheet leftovers) are ignored when the first seven make a row.
+    parsed = _parse_fields(fields[: len(FIELD_NAMES)], image_folder)
+    if isinstance(parsed, tuple):
+        reason, problem = parsed
+        if count == len(FIELD_NAMES) or reason != "non_numeric":
+            return SkippedRow(line_number, reason, f"line {line_number}: {problem}")
+        hint = (" (a comma inside an image path?)"
+                if any(_looks_like_path(item) for item in fields[3:7]) else "")
+        return SkippedRow(
+            line_number,
+            "field_count",
+            f"line {line_number} has {count} fields, expected 7, and its first seven are not a "
+            f"row: {problem}{hint}",
+        )
+    return replace(parsed, row=line_number)
 
+
+def _parse_fields(fields: list[str], image_folder: Path) -> LogRow | tuple[str, str]:
+    """Seven fields -> a LogRow (line number 0), or (reason, what is wrong)."""
     values: list[float] = []
     for name, index, low, high in _RANGES:
         text = fields[index].strip()
         if _NON_FINITE.fullmatch(text):
-            return SkippedRow(
-                line_number,
-                "non_numeric",
-                f"line {line_number}: {name} is {text!r}, expected a finite number",
-            )
+            return "non_numeric", f"{name} is {_shown(text)}, expected a finite number"
         if not _NUMBER.fullmatch(text):
-            return SkippedRow(
-                line_number,
-                "non_numeric",
-                f"line {line_number}: {name} is {text!r}, expected a number",
-            )
+            return "non_numeric", f"{name} is {_shown(text)}, expected a number"
         value = float(text)
         if not math.isfinite(value):  # e.g. 1e400
-            return SkippedRow(
-                line_number,
-                "non_numeric",
-                f"line {line_number}: {name} is {text!r}, too large to be a finite number",
-            )
+            return "non_numeric", f"{name} is {_shown(text)}, too large to be a finite number"
         if (low is not None and value < low - RANGE_TOLERANCE) or (
             high is not None and value > high + RANGE_TOLERANCE
         ):
             expected = f"[{low:g}, {high:g}]" if high is not None else f">= {low:g}"
-            return SkippedRow(
-                line_number,
-                "out_of_range",
-                f"line {line_number}: {name} is {value:g}, expected {expected}",
-            )
+            return "out_of_range", f"{name} is {value:g}, expected {expected}"
         value = max(value, low) if low is not None else value
         value = min(value, high) if high is not None else value
         values.append(value + 0.0)  # + 0.0 turns -0.0 into 0.0
@@ -293,14 +345,25 @@ def _parse_row(line_number: int, fields: list[str], image_folder: Path) -> LogRo
     for camera, recorded in zip(CAMERAS, fields[:3], strict=True):
         basename = image_basename(recorded)
         if not basename:
-            return SkippedRow(
-                line_number,
-                "image_missing",
-                f"line {line_number}: the {camera} image path {recorded.strip()!r} names no file",
-            )
+            return ("image_missing",
+                    f"the {camera} image path {_shown(recorded.strip())} names no file")
+        size = len(basename.encode("utf-8", "surrogatepass"))
+        if size > MAX_NAME_BYTES:
+            return ("image_name", f"the {camera} image name {_shown(basename)} is {size} bytes; "
+                                  f"file systems allow {MAX_NAME_BYTES}")
         paths.append(image_folder / basename)
     steering, throttle, brake, speed_mph = values
-    return LogRow(line_number, *paths, steering, throttle, brake, speed_mph)
+    return LogRow(0, *paths, steering, throttle, brake, speed_mph)
+
+
+def _looks_like_path(text: str) -> bool:
+    text = text.strip()
+    return "/" in text or "\\" in text or text.lower().endswith((".jpg", ".jpeg", ".png"))
+
+
+def _shown(text: str, limit: int = 60) -> str:
+    """``repr(text)``, shortened to about ``limit`` characters."""
+    return repr(text) if len(text) <= limit else repr(text[: limit - 3] + "...")
 
 
 def _verify_images(
@@ -311,47 +374,65 @@ def _verify_images(
         import cv2
         import numpy as np
 
-    def problem(row: LogRow) -> SkippedRow | None:
+    def check(row: LogRow) -> LogRow | SkippedRow:
+        """The row (with the cameras whose images exist) or why it is skipped."""
+        present = []
         for camera in CAMERAS:
             image_path = row.image(camera)
-            if not image_path.is_file():
+            try:
+                exists = image_path.is_file()
+            except OSError as error:  # e.g. a folder that cannot be read
+                return SkippedRow(
+                    row.row,
+                    "image_missing",
+                    f"line {row.row}: {camera} image {image_path} cannot be read "
+                    f"({error.strerror})",
+                )
+            if exists:
+                present.append(camera)
+            elif camera == "center":
                 return SkippedRow(
                     row.row,
                     "image_missing",
                     f"line {row.row}: {camera} image {image_path} does not exist",
                 )
-        if not decode:
-            return None
-        for camera in CAMERAS:
-            image_path = row.image(camera)
-            data = image_path.read_bytes()
-            if data.startswith(b"\xff\xd8") and not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
-                return SkippedRow(
-                    row.row,
-                    "image_corrupt",
-                    f"line {row.row}: {camera} image {image_path} is a truncated JPEG "
-                    "(no end-of-image marker)",
-                )
-            image = None
-            if data:
-                try:
-                    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-                except cv2.error:
-                    image = None
-            if image is None:
-                return SkippedRow(
-                    row.row,
-                    "image_corrupt",
-                    f"line {row.row}: {camera} image {image_path} does not decode as an image",
-                )
-            if image.shape != IMAGE_SHAPE:
-                height, width = image.shape[:2]
-                return SkippedRow(
-                    row.row,
-                    "image_size",
-                    f"line {row.row}: {camera} image {image_path} is {width}x{height}, "
-                    "expected 320x160",
-                )
+        if decode:
+            for camera in present:
+                found = decode_problem(row, camera)
+                if found is not None:
+                    return found
+        return row if len(present) == len(CAMERAS) else replace(row, cameras=tuple(present))
+
+    def decode_problem(row: LogRow, camera: str) -> SkippedRow | None:
+        image_path = row.image(camera)
+        data = image_path.read_bytes()
+        if data.startswith(b"\xff\xd8") and not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
+            return SkippedRow(
+                row.row,
+                "image_corrupt",
+                f"line {row.row}: {camera} image {image_path} is a truncated JPEG "
+                "(no end-of-image marker)",
+            )
+        image = None
+        if data:
+            try:
+                image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+            except cv2.error:
+                image = None
+        if image is None:
+            return SkippedRow(
+                row.row,
+                "image_corrupt",
+                f"line {row.row}: {camera} image {image_path} does not decode as an image",
+            )
+        if image.shape != IMAGE_SHAPE:
+            height, width = image.shape[:2]
+            return SkippedRow(
+                row.row,
+                "image_size",
+                f"line {row.row}: {camera} image {image_path} is {width}x{height}, "
+                "expected 320x160",
+            )
         return None
 
     iterable = rows
@@ -362,11 +443,8 @@ def _verify_images(
     good: list[LogRow] = []
     bad: list[SkippedRow] = []
     for row in iterable:
-        found = problem(row)
-        if found is None:
-            good.append(row)
-        else:
-            bad.append(found)
+        found = check(row)
+        (good if isinstance(found, LogRow) else bad).append(found)
     return good, bad
 
 

@@ -104,6 +104,7 @@ class Samples:
     skipped: dict[str, int]  # reason -> rows skipped by the log reader, all recordings
     skipped_details: list[str]  # "recording: detail" for every skipped row
     rows_read: int  # usable CSV rows over all recordings
+    side_images_missing: int = 0  # of those, rows with a side camera off (its image missing)
 
     def __len__(self) -> int:
         return int(self.steering.shape[0])
@@ -306,10 +307,12 @@ def _toml_string(text: str) -> str:
 def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
     """Read every recording of ``recipe`` and list its samples.
 
-    Per CSV row: the center camera, plus left and right with ``cameras = "all"``; each of
-    those again mirrored when ``flip``. Rows the log reader skips (missing images, bad
-    numbers, ...) are counted in ``Samples.skipped`` by reason; a recording folder without
-    a ``driving_log.csv`` raises ``FileNotFoundError`` naming it.
+    Per CSV row: the center camera, plus left and right with ``cameras = "all"`` (those
+    whose image exists: a center-only data set gives center samples, counted in
+    ``Samples.side_images_missing``); each of those again mirrored when ``flip``. Rows the
+    log reader skips (missing center image, bad numbers, ...) are counted in
+    ``Samples.skipped`` by reason; a recording folder without a ``driving_log.csv`` raises
+    ``FileNotFoundError`` naming it.
     """
     unique_paths: list[Path] = []
     path_index: dict[Path, int] = {}
@@ -320,6 +323,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
     skipped: dict[str, int] = {}
     skipped_details: list[str] = []
     rows_read = 0
+    side_images_missing = 0
 
     for recording_number, spec in enumerate(recipe.recordings):
         log = read_driving_log(spec.path, verify_images=verify_images)
@@ -327,6 +331,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
             skipped[item.reason] = skipped.get(item.reason, 0) + 1
             skipped_details.append(f"{spec.name}: {item.detail}")
         rows_read += len(log.rows)
+        side_images_missing += log.side_images_missing
         if not log.rows:
             continue
         times = _row_times_s(log.rows)
@@ -335,6 +340,8 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
         count_before = len(columns["steering"])
         for row, time_s in zip(log.rows, times, strict=True):
             for camera in cameras:
+                if camera not in row.cameras:  # its image is missing: the row has the others
+                    continue
                 image_path = row.image(camera)
                 index = path_index.get(image_path)
                 if index is None:
@@ -367,6 +374,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
         skipped=skipped,
         skipped_details=skipped_details,
         rows_read=rows_read,
+        side_images_missing=side_images_missing,
     )
 
 

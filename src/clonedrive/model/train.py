@@ -314,6 +314,9 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     ]
     if samples.skipped:
         lines.append(f"skipped rows: {_counts_text(samples.skipped)}")
+    if samples.side_images_missing:
+        lines.append(f"{samples.side_images_missing} rows lack a side image: they train with "
+                     "the cameras they have")
 
     balance_rng = np.random.default_rng([config.seed, 1])
     if config.balance:
@@ -372,6 +375,7 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
             for spec in recipe.recordings
         ],
         "rows_read": samples.rows_read,
+        "side_images_missing": samples.side_images_missing,
         "skipped_rows": samples.skipped,
         "skipped_row_details": samples.skipped_details[:100],
         "samples_before_balance": int(balanced.counts_before.sum()),

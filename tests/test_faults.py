@@ -11,11 +11,14 @@ import json
 import math
 import os
 import resource
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from clonedrive.cli import main
+from clonedrive.data.driving_log import read_driving_log
 
 #: Address space a probe subprocess may use [bytes]: far below what an unbounded input takes.
 PROBE_MEMORY_LIMIT = 1 << 30
@@ -31,6 +34,7 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 _PROBE_SCRIPT = """
 import contextlib, io, json, sys
 from clonedrive.cli import main
+from clonedrive.data.driving_log import read_driving_log
 results = []
 for argv in json.loads(sys.argv[1]):
     err = io.StringIO()
@@ -144,3 +148,37 @@ def test_hostile_track_files_get_one_line_in_bounded_memory(tmp_path):
     for path, (code, err) in zip(paths.values(), results, strict=True):
         assert_one_clear_line(code, err)
         assert str(path) in err
+
+
+# --------------------------------------------------------------------------- two recorders
+
+def test_a_second_recorder_into_the_same_folder_is_refused(tmp_path):
+    out = tmp_path / "shared"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    argv = [sys.executable, "-m", "clonedrive.cli", "record", "--no-scenery", "--speed", "20",
+            "--out", str(out), "--json"]
+    # The first records for long enough that it surely holds the folder; it is interrupted
+    # (Ctrl-C) once the second has been refused.
+    first = subprocess.Popen([*argv, "--track", "lake", "--seconds", "3600"], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lock = out / ".clonedrive-recording.lock"
+        deadline = time.monotonic() + 120
+        while not (out / "driving_log.csv").exists() and first.poll() is None \
+                and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert lock.exists(), "the first recorder never started writing"
+        second = subprocess.run([*argv, "--track", "mountain", "--seconds", "2"], env=env,
+                                capture_output=True, text=True, timeout=120)
+    finally:
+        first.send_signal(signal.SIGINT)
+        printed, first_err = first.communicate(timeout=120)
+    assert first.returncode == 130, first_err  # interrupted: every row written so far is whole
+    assert_one_clear_line(second.returncode, second.stderr)
+    assert "another recorder" in second.stderr and f"PID {first.pid}" in second.stderr
+    rows = json.loads(printed)["rows"]
+    log = read_driving_log(out, verify_images="exists")
+    assert rows > 0 and len(log.rows) == log.total_rows == rows and not log.shared_images()
+    assert len(list((out / "IMG").glob("*.jpg"))) == 3 * rows
+    assert json.loads((out / "config.json").read_text())["track"] == "lake"
+    assert not lock.exists()

@@ -46,3 +46,18 @@ def inside(folder: str | os.PathLike, path: str | os.PathLike) -> Path:
     if target != root and root not in target.parents:
         raise ValueError(f"{path}: refusing to write outside the output folder {root}")
     return target
+
+
+def check_output_folder(path: str | os.PathLike, *, option: str = "--out") -> Path:
+    """``path`` as a Path, after checking that it can be an output folder: a folder, or
+    nothing yet. ``ValueError`` naming ``option`` when it is an existing file (or a link to
+    one), or when a parent of it is a file."""
+    path = Path(path)
+    for candidate in (path, *path.parents):
+        if candidate.exists() and not candidate.is_dir():
+            where = "is" if candidate == path else f"is inside {candidate}, which is"
+            raise ValueError(f"{option} {path} {where} an existing file, not a folder; give a "
+                             "folder (new, or one this command wrote before)")
+        if candidate.exists():
+            break
+    return path

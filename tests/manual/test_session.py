@@ -255,6 +255,23 @@ def test_recording_needs_all_three_cameras(tmp_path):
         assert not (tmp_path / "manual").exists()
 
 
+def test_recording_into_a_folder_another_recorder_holds_is_refused(tmp_path):
+    from clonedrive.data.recording_lock import RecordingLock
+
+    with RecordingLock(tmp_path / "manual"), open_session(tmp_path, sim_config=CAMERAS) as session:
+        session.key_down("r")
+        assert not session.recording
+        assert "cannot record" in session.message and "another recorder" in session.message
+    with open_session(tmp_path, sim_config=CAMERAS) as session:  # free once the other let go
+        session.key_down("r")
+        session.key_up("r")
+        assert session.recording
+        session.step()
+        session.key_down("r")
+        assert not session.recording and session.rows_recorded == 1
+    assert not (tmp_path / "manual" / ".clonedrive-recording.lock").exists()
+
+
 def test_hud_shows_speed_steering_cte_and_recording_state(tmp_path):
     with open_session(tmp_path) as session:
         session.key_down("w")

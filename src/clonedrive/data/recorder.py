@@ -31,6 +31,11 @@ reader reports as missing; it skips and counts them.
 the last image already in the log (or at the current time, if later), so names stay unique and
 ordered, and ``config.json`` gains a session. Use a new folder for a separate data set.
 
+**One recorder per folder.** A recording holds the folder's lock file
+(:mod:`clonedrive.data.recording_lock`) from before it reads the folder until its last row is
+written; a second recorder started meanwhile is refused with a message naming the first, and the
+lock a killed recorder leaves behind is recognised as stale and taken over.
+
 Recording stops after ``laps`` laps in the driving direction (or ``seconds`` of simulated
 driving, if given, whichever comes first), or earlier (with ``stopped="off_road"``) once the
 expert has left the road ``max_off_road_events`` times.
@@ -60,7 +65,9 @@ from clonedrive.data.driving_log import (
     image_time,
     read_driving_log,
 )
+from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+from clonedrive.paths import check_output_folder
 from clonedrive.udacity_spec import JPEG_QUALITY
 
 CONFIG_NAME = "config.json"
@@ -153,7 +160,17 @@ class RecordSummary:
 def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool = True
            ) -> RecordSummary:
     """Drive the expert and record a Udacity-format log into ``out_dir`` (appending if one is
-    there). ``progress``: show a tqdm bar (stderr) by lap progress."""
+    there). ``progress``: show a tqdm bar (stderr) by lap progress.
+
+    Only one recorder writes into a folder at a time: a second one raises
+    :class:`~clonedrive.data.recording_lock.RecordingLockedError` before touching anything,
+    and an ``out_dir`` that is a file raises ``ValueError``."""
+    out = check_output_folder(Path(out_dir).absolute())
+    with RecordingLock(out):
+        return _record(config, out, progress=progress)
+
+
+def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSummary:
     from clonedrive import __version__
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.world.catalog import load_track

@@ -195,6 +195,7 @@ class DrivingSession:
         self._axes = dict.fromkeys(GAMEPAD_AXES, 0.0)
         self._pending: tuple[str, bool] | None = None
         self._sink = None
+        self._lock = None  # the recording folder's lock while recording
         self._session: dict | None = None
         self._recording_config: ManualRecording | None = None
         self._client = None
@@ -388,10 +389,8 @@ class DrivingSession:
     # ------------------------------------------------------------------ recording
     def start_recording(self) -> bool:
         """Start recording into ``out_dir`` (appending to a log already there)."""
-        from clonedrive import __version__
-        from clonedrive.config import config_to_dict
         from clonedrive.data.driving_log import CAMERAS
-        from clonedrive.data.recorder import RowSink, prepare_log_folder, write_session_config
+        from clonedrive.data.recording_lock import RecordingLock, RecordingLockedError
 
         if self.sim is None or self.recording:
             return False
@@ -399,6 +398,27 @@ class DrivingSession:
         if missing:
             self._say(f"cannot record: no {', '.join(missing)} camera")
             return False
+        lock = RecordingLock(self.out_dir)
+        try:
+            lock.acquire()
+        except (RecordingLockedError, ValueError, OSError) as error:
+            self._say(f"cannot record: {error}")
+            return False
+        try:
+            self._open_sink()
+        except BaseException:
+            lock.release()
+            raise
+        self._lock = lock
+        self._say(f"recording into {self.out_dir}")
+        return True
+
+    def _open_sink(self) -> None:
+        """Start this recording's session in ``out_dir`` (its lock held) and open the sink."""
+        from clonedrive import __version__
+        from clonedrive.config import config_to_dict
+        from clonedrive.data.recorder import RowSink, prepare_log_folder, write_session_config
+
         existing_rows, start = prepare_log_folder(self.out_dir)
         # Image names are start + simulated time: the first row's image is named ``start``.
         elapsed = timedelta(seconds=self.observation.time_s)
@@ -416,8 +436,6 @@ class DrivingSession:
         self._recording_config = recording
         self.rows_recorded = 0
         self.folder_rows = existing_rows
-        self._say(f"recording into {self.out_dir}")
-        return True
 
     def stop_recording(self) -> int:
         """Stop recording: every submitted row is written before this returns. Returns the rows
@@ -432,8 +450,13 @@ class DrivingSession:
             sink.close()
         finally:
             self._session["rows"] = sink.rows_written
-            write_session_config(self.out_dir, self._recording_config, self.sim.track,
-                                 __version__, self._session)
+            try:
+                write_session_config(self.out_dir, self._recording_config, self.sim.track,
+                                     __version__, self._session)
+            finally:
+                lock, self._lock = self._lock, None
+                if lock is not None:
+                    lock.release()
         self.rows_recorded = sink.rows_written
         self._say(f"recorded {sink.rows_written} rows into {self.out_dir}")
         return sink.rows_written

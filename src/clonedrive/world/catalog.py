@@ -1,16 +1,29 @@
-"""Track names: the one place that turns ``lake``, ``gen:17`` or a file path into a Track.
+"""Track names: the one place that turns ``lake``, ``gen2:hard:17`` or a file path into a Track.
+
+Generated names (see :mod:`clonedrive.world.generate` for what each generator makes):
+
+- ``gen:<seed>``: generator v1, the name published with v1's figures (it keeps meaning v1);
+- ``gen1:<seed>``: generator v1, by its versioned name;
+- ``gen2:<seed>``: generator v2 at medium difficulty, the same as ``gen2:medium:<seed>``;
+- ``gen2:<difficulty>:<seed>``: generator v2 at ``easy``, ``medium`` or ``hard``.
 
 It sits above :mod:`clonedrive.world.track` and :mod:`clonedrive.world.generate`, so neither of
-those imports the other.
+those imports the other. Generated tracks are kept (a few dozen) once made: a suite names the
+same track from many places, and a hard v2 track takes a few tenths of a second to draw.
 """
 
 from __future__ import annotations
 
+import functools
 from importlib import resources
 from pathlib import Path
 
-from clonedrive.world.generate import generate
+from clonedrive.world.generate import V1_VERSION, generate
+from clonedrive.world.segments import DEFAULT_DIFFICULTY, DIFFICULTIES
+from clonedrive.world.segments import VERSION as V2_VERSION
 from clonedrive.world.track import Track, TrackError
+
+GENERATED_NAMES = "gen:<seed>, gen1:<seed>, gen2:<seed> or gen2:<easy|medium|hard>:<seed>"
 
 
 def builtin_track_names() -> list[str]:
@@ -18,15 +31,47 @@ def builtin_track_names() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json"))
 
 
+def is_generated_name(name: str) -> bool:
+    return name.split(":", 1)[0] in ("gen", "gen1", "gen2") and ":" in name
+
+
+def parse_generated_name(name: str) -> tuple[int, str | None, int]:
+    """``(version, difficulty or None, seed)`` of a generated track's name."""
+    prefix, _, rest = name.partition(":")
+    parts = rest.split(":")
+    difficulty = None
+    if prefix == "gen2" and len(parts) == 2:
+        difficulty, parts = parts[0], parts[1:]
+        if difficulty not in DIFFICULTIES:
+            raise TrackError(f"{name!r}: unknown difficulty {difficulty!r}; use "
+                             f"{', '.join(DIFFICULTIES)}")
+    try:
+        if len(parts) != 1:
+            raise ValueError(name)
+        seed = int(parts[0])
+    except ValueError:
+        raise TrackError(f"{name!r}: generated tracks are named {GENERATED_NAMES} "
+                         "(integer seed)") from None
+    if seed < 0 or seed > 2**31:
+        raise TrackError(f"{name!r}: the seed must be in [0, 2^31]")
+    if prefix == "gen2":
+        return V2_VERSION, difficulty or DEFAULT_DIFFICULTY, seed
+    return V1_VERSION, None, seed
+
+
+@functools.lru_cache(maxsize=48)
+def _generated(name: str) -> Track:
+    version, difficulty, seed = parse_generated_name(name)
+    if version == V1_VERSION:
+        return generate(seed, version=V1_VERSION, name=name)
+    return generate(seed, version=version, difficulty=difficulty, name=name)
+
+
 def load_track(name_or_path: str | Path) -> Track:
-    """A track by built-in name (``lake``), generated name (``gen:17``) or JSON file path."""
+    """A track by built-in name (``lake``), generated name (``gen2:hard:17``) or JSON path."""
     name = str(name_or_path)
-    if name.startswith("gen:"):
-        try:
-            seed = int(name[4:])
-        except ValueError:
-            raise TrackError(f"{name!r}: generated tracks are named gen:<integer seed>") from None
-        return generate(seed)
+    if is_generated_name(name):
+        return _generated(name)
     if name in builtin_track_names():
         folder = resources.files("clonedrive.world") / "tracks"
         with resources.as_file(folder / f"{name}.json") as path:
@@ -35,6 +80,6 @@ def load_track(name_or_path: str | Path) -> Track:
     if path.suffix == ".json" or path.exists():
         return Track.from_file(path)
     raise TrackError(
-        f"unknown track {name!r}: use one of {', '.join(builtin_track_names())}, gen:<seed>, "
-        "or a path to a track .json file"
+        f"unknown track {name!r}: use one of {', '.join(builtin_track_names())}, "
+        f"{GENERATED_NAMES}, or a path to a track .json file"
     )

@@ -1,9 +1,16 @@
 """Procedural closed tracks from a seed: the unseen tracks for generalisation tests.
 
-``generate(seed)`` draws length, curviness, elevation and theme from ``seed`` and returns a valid
-:class:`~clonedrive.world.track.Track`, identical for the same seed. A shape that fails validation
-(too tight, overlapping) is redrawn from the same generator, so the result is still a pure function
-of the seed. ``gen:<seed>`` names these tracks wherever a track name is accepted.
+Two generators, both pure functions of their inputs (a shape that fails validation is redrawn
+from the same random generator):
+
+- **v1** (this module, frozen): a circle perturbed by a few harmonics, no curve under 15 m.
+  Named ``gen1:<seed>``, and also plain ``gen:<seed>``: that name was published with v1
+  figures (the demo's unseen tracks, evaluate ``--unseen``), so it keeps meaning v1.
+- **v2** (:mod:`clonedrive.world.segments`): tracks built from straights, arcs, hairpins,
+  S-bends, chicanes and switchbacks at a difficulty. Named ``gen2:<seed>`` (medium) or
+  ``gen2:<easy|medium|hard>:<seed>``.
+
+:func:`generate` makes either; :data:`GENERATOR_VERSION` is the newest.
 """
 
 from __future__ import annotations
@@ -12,15 +19,19 @@ import math
 
 import numpy as np
 
+from clonedrive.world import segments
 from clonedrive.world.track import THEMES, Track, TrackError, TrackSpec
 
-#: Bump when the generator's output changes, so earlier published numbers stay comparable.
-GENERATOR_VERSION = 1
+#: The newest generator. A generator's output never changes: a new one gets the next version,
+#: and the old stays reachable by its versioned name, so earlier numbers stay comparable.
+GENERATOR_VERSION = segments.VERSION
+#: Version 1's number: part of its random seed and of its tracks' ``version``.
+V1_VERSION = 1
 #: Generated tracks are drivable by a learner: no curve tighter than this [m].
 MIN_GENERATED_RADIUS_M = 15.0
 
 
-def _draw_spec(rng: np.random.Generator, seed: int) -> TrackSpec:
+def _draw_spec(rng: np.random.Generator, seed: int, name: str) -> TrackSpec:
     length_m = rng.uniform(700.0, 1600.0)
     curviness = rng.uniform(0.12, 0.32)
     theme = THEMES[int(rng.integers(len(THEMES)))]
@@ -51,8 +62,8 @@ def _draw_spec(rng: np.random.Generator, seed: int) -> TrackSpec:
         x, y, z = x[::-1], y[::-1], z[::-1]
     centerline = tuple((float(a), float(b), float(c)) for a, b, c in zip(x, y, z, strict=True))
     return TrackSpec(
-        name=f"gen:{seed}",
-        version=GENERATOR_VERSION,
+        name=name,
+        version=V1_VERSION,
         theme=theme,
         width_m=round(width_m, 2),
         closed=True,
@@ -60,14 +71,26 @@ def _draw_spec(rng: np.random.Generator, seed: int) -> TrackSpec:
     )
 
 
-def generate(seed: int, *, max_attempts: int = 50) -> Track:
-    """A valid closed track drawn from ``seed`` (same seed, same track)."""
+def generate(seed: int, *, version: int = GENERATOR_VERSION,
+             difficulty: str = segments.DEFAULT_DIFFICULTY, name: str | None = None) -> Track:
+    """A valid closed track drawn from ``seed`` by generator ``version`` (1 or 2; ``difficulty``
+    applies to 2). Same arguments, same track."""
+    if version == V1_VERSION:
+        return generate_v1(seed, name=name)
+    if version == segments.VERSION:
+        return segments.generate_v2(seed, difficulty, name=name)
+    raise TrackError(f"unknown track generator version {version}: use 1 or {GENERATOR_VERSION}")
+
+
+def generate_v1(seed: int, *, name: str | None = None, max_attempts: int = 50) -> Track:
+    """Version 1: a valid closed track drawn from ``seed`` (same seed, same track)."""
     if seed < 0:
         raise TrackError(f"generated track seed must be >= 0, got {seed}")
-    rng = np.random.default_rng([GENERATOR_VERSION, seed])
+    name = name or f"gen:{seed}"
+    rng = np.random.default_rng([V1_VERSION, seed])
     last_error = None
     for _ in range(max_attempts):
-        spec = _draw_spec(rng, seed)
+        spec = _draw_spec(rng, seed, name)
         try:
             track = Track(spec)
         except TrackError as error:
@@ -76,4 +99,4 @@ def generate(seed: int, *, max_attempts: int = 50) -> Track:
         if track.min_radius_m >= MIN_GENERATED_RADIUS_M:
             return track
         last_error = f"tightest curve {track.min_radius_m:.1f} m < {MIN_GENERATED_RADIUS_M} m"
-    raise TrackError(f"gen:{seed}: no valid track in {max_attempts} draws ({last_error})")
+    raise TrackError(f"{name}: no valid track in {max_attempts} draws ({last_error})")

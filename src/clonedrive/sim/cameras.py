@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clonedrive.sim.conditions import fog_alpha, jpeg_round_trip
 from clonedrive.sim.scene import FAR_M, NEAR_M, Scene, texture_rgb
 from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 
@@ -106,7 +107,21 @@ class CameraRig:
             x, up, forward = self.mounts[name].position_m
             node = self._nodes[name]
             node.set_pos(x, forward, up + appearance.camera_height_offset_m)
-            node.set_hpr(0.0, -self.mounts[name].pitch_down_deg, 0.0)
+            pitch = self.mounts[name].pitch_down_deg + appearance.camera_pitch_offset_deg
+            node.set_hpr(0.0, -pitch, 0.0)
+        self._fog = {}
+        if appearance.visibility_m is not None:
+            fog_rgb = np.asarray(appearance.sky_horizon_rgb, dtype=np.float32)
+            for name in self.cameras:
+                mount = self.mounts[name]
+                alpha = fog_alpha(self.height, vertical_fov_deg=mount.vertical_fov_deg,
+                                  pitch_down_deg=mount.pitch_down_deg
+                                  + appearance.camera_pitch_offset_deg,
+                                  camera_height_m=mount.position_m[1]
+                                  + appearance.camera_height_offset_m,
+                                  visibility_m=appearance.visibility_m)
+                alpha = alpha.astype(np.float32)[:, None, None]
+                self._fog[name] = (1.0 - alpha, alpha * fog_rgb)
         self._noise = None
         if appearance.pixel_noise_std > 0:
             rng = np.random.default_rng([self.scene.seed, 0xB0B])
@@ -135,11 +150,16 @@ class CameraRig:
         self.scene.set_car_pose(x_m, y_m, z_m, yaw_rad, pitch_rad, roll_rad)
         self.scene.engine.render_frame()
         images = {name: texture_rgb(self._textures[name]) for name in self.cameras}
+        for name, (keep, fog) in self._fog.items():
+            images[name] = np.rint(images[name] * keep + fog).astype(np.uint8)
         if self._noise is not None:
             picks = self.scene.noise_rng.integers(0, _NOISE_BANK, len(self.cameras))
             for name, pick in zip(self.cameras, picks, strict=True):
                 noisy = images[name].astype(np.int16) + self._noise[pick]
                 images[name] = np.clip(noisy, 0, 255).astype(np.uint8)
+        quality = self.scene.appearance.jpeg_quality
+        if quality is not None:
+            images = {name: jpeg_round_trip(image, quality) for name, image in images.items()}
         return images
 
     def close(self) -> None:

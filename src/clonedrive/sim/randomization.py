@@ -56,6 +56,11 @@ class Appearance:
     tint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
     camera_height_offset_m: float = 0.0
     pixel_noise_std: float = 0.0
+    camera_pitch_offset_deg: float = 0.0  #: + = the cameras look further down
+    jpeg_quality: int | None = None  #: frames go through a JPEG of this quality (None: raw)
+    #: fog by distance from the camera, in image space [m]: contrast falls to 5 % at this
+    #: distance along a level road (None: only the baked fog by distance from the road)
+    visibility_m: float | None = None
 
 
 _THEME_LOOK = {
@@ -88,7 +93,6 @@ def sample_appearance(
     theme: str, config: RandomizationConfig, rng: np.random.Generator
 ) -> Appearance:
     """A randomised look around the theme's default, drawn from ``config`` with ``rng``."""
-    base = default_appearance(theme)
 
     def draw(bounds: tuple[float, float]) -> float:
         return float(rng.uniform(*bounds))
@@ -97,28 +101,59 @@ def sample_appearance(
     azimuth = draw(config.sun_azimuth_deg)
     intensity = draw(config.light_intensity)
     warmth = draw(config.warmth)
-    # low sun is warmer and weaker; warmth moves red up and blue down
+    tint = 1.0 + rng.uniform(-config.tint, config.tint, 3)
+    fog_scale = draw(config.fog_density_scale)
+    camera_height = float(rng.uniform(-config.camera_height_m, config.camera_height_m))
+    noise = draw(config.pixel_noise_std)
+    return lit_appearance(theme, sun_elevation_deg=elevation, sun_azimuth_deg=azimuth,
+                          light_intensity=intensity, warmth=warmth,
+                          tint_rgb=tuple(float(v) for v in tint), fog_density_scale=fog_scale,
+                          camera_height_offset_m=camera_height, pixel_noise_std=noise)
+
+
+def lit_appearance(
+    theme: str,
+    *,
+    sun_elevation_deg: float,
+    sun_azimuth_deg: float,
+    light_intensity: float = 1.0,
+    warmth: float = 0.0,
+    tint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0),
+    fog_density_scale: float = 1.0,
+    sky_scale: float | None = None,
+    camera_height_offset_m: float = 0.0,
+    pixel_noise_std: float = 0.0,
+) -> Appearance:
+    """The theme's look under a given sun: a low sun is warmer and weaker; ``warmth`` moves
+    red up and blue down; ``sky_scale`` (default from the light) darkens or brightens the sky.
+    :func:`sample_appearance` draws these; :mod:`clonedrive.sim.conditions` sets them."""
+    base = default_appearance(theme)
+    elevation, intensity = sun_elevation_deg, light_intensity
     low_sun = 1.0 - min(1.0, (elevation - 5.0) / 40.0)
     warm = warmth + 0.2 * low_sun
     colour = np.array([1.0 + 0.5 * warm, 1.0 + 0.1 * warm, 1.0 - 0.6 * warm])
     sun = np.asarray(base.lighting.sun_rgb) * intensity * colour * (1.0 - 0.25 * low_sun)
     ambient = np.asarray(base.lighting.ambient_rgb) * (0.85 + 0.15 * intensity) * (
         1.0 + 0.3 * (colour - 1.0))
-    sky_scale = 0.85 + 0.15 * intensity
+    if sky_scale is None:
+        sky_scale = 0.85 + 0.15 * intensity
     zenith = np.clip(np.asarray(base.sky_zenith_rgb) * sky_scale * (1 + 0.2 * (colour - 1)), 0,
                      255)
     horizon = np.clip(np.asarray(base.sky_horizon_rgb) * sky_scale * (1 + 0.4 * (colour - 1)),
                       0, 255)
-    tint = 1.0 + rng.uniform(-config.tint, config.tint, 3)
     horizon = tuple(float(v) for v in horizon)
-    fog = base.lighting.fog_density_per_m * draw(config.fog_density_scale)
+    fog = base.lighting.fog_density_per_m * fog_density_scale
     return Appearance(
-        lighting=Lighting(_sun_vector(elevation, azimuth), tuple(sun), tuple(ambient),
+        lighting=Lighting(_sun_vector(elevation, sun_azimuth_deg), tuple(sun), tuple(ambient),
                           fog_rgb=horizon, fog_density_per_m=fog),
         sky_zenith_rgb=tuple(float(v) for v in zenith),
         sky_horizon_rgb=horizon,
-        tint_rgb=tuple(float(v) for v in tint),
-        camera_height_offset_m=float(rng.uniform(-config.camera_height_m,
-                                                 config.camera_height_m)),
-        pixel_noise_std=draw(config.pixel_noise_std),
+        tint_rgb=tuple(float(v) for v in tint_rgb),
+        camera_height_offset_m=float(camera_height_offset_m),
+        pixel_noise_std=float(pixel_noise_std),
     )
+
+
+def theme_sun_deg(theme: str) -> tuple[float, float]:
+    """The theme's own sun (elevation, azimuth) [deg]."""
+    return _THEME_LOOK[theme][0]

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clonedrive.sim import textures
+from clonedrive.sim.conditions import Conditions
 from clonedrive.sim.meshes import BakedGeom, Mesh, grid_triangles
 from clonedrive.sim.randomization import (
     Appearance,
@@ -200,7 +201,9 @@ class Scene:
     Parameters: ``track`` (a Track or a name for :func:`load_track`), ``scenery`` (False: road,
     kerbs and a narrow verge only, quick to build), ``randomization`` (None: the theme's fixed
     look; a :class:`RandomizationConfig`: a look drawn from ``seed``), ``seed`` (also seeds pixel
-    noise), ``window`` (use the OpenGL pipe; see :class:`RenderEngine`).
+    noise), ``window`` (use the OpenGL pipe; see :class:`RenderEngine`), ``conditions`` (a
+    :class:`~clonedrive.sim.conditions.Conditions`: road and line colours, wear, shadows,
+    vegetation, sun, fog and the camera's sensor; it replaces ``randomization``).
 
     Attributes: ``root`` (the scene's top NodePath), ``car`` (the car's node: cameras and the
     hood hang from it), ``appearance``, ``scenery``, ``engine``.
@@ -214,12 +217,14 @@ class Scene:
         randomization: RandomizationConfig | None = None,
         seed: int = 0,
         window: bool = False,
+        conditions: Conditions | None = None,
     ):
         from panda3d.core import NodePath
 
         self.track = load_track(track) if isinstance(track, str) else track
         self.theme = self.track.theme
         self.randomization = randomization
+        self.conditions = conditions
         self.engine = RenderEngine(window=window)
         self.closed = False
         self._rigs: list = []
@@ -229,7 +234,8 @@ class Scene:
             self.static = self.root.attach_new_node("static")
             self.follow = self.root.attach_new_node("follow-car")  # sky and fog: position only
             self.car = self.root.attach_new_node("car")
-            self.scenery: Scenery = build_scenery(self.track, full=scenery)
+            style = conditions.style(self.theme) if conditions is not None else None
+            self.scenery: Scenery = build_scenery(self.track, full=scenery, style=style)
             self._materials = self._make_materials()
             self._build_static()
             self._build_hood()
@@ -245,7 +251,9 @@ class Scene:
         """Draw a new look from ``seed`` (if randomisation is on) and re-seed pixel noise."""
         self.seed = int(seed)
         rng = np.random.default_rng([self.seed, 0x5CE7E])
-        if self.randomization is not None:
+        if self.conditions is not None:
+            appearance = self.conditions.appearance(self.theme)
+        elif self.randomization is not None:
             appearance = sample_appearance(self.theme, self.randomization, rng)
         else:
             appearance = default_appearance(self.theme)
@@ -293,7 +301,8 @@ class Scene:
         images = {
             "road": textures.asphalt(rng, base_rgb=style.road_rgb, road_width_m=width,
                                      edge_rgb=style.edge_line_rgb, centre_line=style.centre_line,
-                                     tyre_tracks=style.tyre_tracks),
+                                     tyre_tracks=style.tyre_tracks,
+                                     wear=self.conditions.road_wear if self.conditions else 0.0),
             "ground": textures.ground_detail(rng),
             "rock": textures.rock(rng),
             "water": textures.water(rng),

@@ -88,6 +88,7 @@ class ThemeStyle:
     tree_weights: tuple[float, ...]
     tree_keep: float  #: fraction of candidate tree sites kept
     shadow_spacing_m: float  #: mean road length between shadow patches
+    shadow_strength: float = 1.0  #: darkness of the shadow patches, x the theme's (0 = none)
 
 
 THEME_STYLES = {
@@ -252,11 +253,11 @@ def interior_side(track: Track) -> int:
 
 # ---------------------------------------------------------------------- the builder
 class _Builder:
-    def __init__(self, track: Track, full: bool):
+    def __init__(self, track: Track, full: bool, style: ThemeStyle | None = None):
         self.track = track
         self.full = full
         self.theme = track.theme
-        self.style = THEME_STYLES[track.theme]
+        self.style = style or THEME_STYLES[track.theme]
         self.meshes: dict[str, Mesh] = {}
         self.counts: dict[str, int] = {}
         self.length = track.length_m
@@ -307,7 +308,7 @@ class _Builder:
         offset = rng.uniform(-1.3, 1.3, count) * half
         xy = self.track.offset_point(s, offset)[:, :2]
         radius = rng.uniform(1.8, 5.5, count)
-        darkness = rng.uniform(0.6, 0.95, count)
+        darkness = np.minimum(rng.uniform(0.6, 0.95, count) * self.style.shadow_strength, 0.98)
         if self.bridge is not None:
             keep = ~self.bridge.contains(s, self.length)
             xy, radius, darkness = xy[keep], radius[keep], darkness[keep]
@@ -863,10 +864,11 @@ def _rock_shape() -> tuple[np.ndarray, np.ndarray]:
     return positions, np.array(triangles)
 
 
-def build_scenery(track: Track, *, full: bool = True) -> Scenery:
+def build_scenery(track: Track, *, full: bool = True, style: ThemeStyle | None = None) -> Scenery:
     """Derive the scenery of ``track`` from its geometry and theme.
 
     ``full=False`` gives the road, kerbs, bridge and a narrow ground strip only (fast to build;
-    for tests that only need the road).
+    for tests that only need the road). ``style``: colours and switches other than the theme's
+    (driving conditions, :mod:`clonedrive.sim.conditions`).
     """
-    return _Builder(track, full).build()
+    return _Builder(track, full, style).build()

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from clonedrive.sim.conditions import Conditions
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track, wrap_angle
@@ -45,6 +46,8 @@ class SimConfig:
     image_height: int = IMAGE_HEIGHT
     scenery: bool = True  #: trees, rocks, barriers... (off: road and terrain only)
     randomize: bool = False  #: domain randomisation of light, fog, tint, camera height, noise
+    #: driving conditions of the scene and camera (sim/conditions.py); replaces ``randomize``
+    conditions: Conditions | None = None
     vehicle: VehicleParams = field(default_factory=VehicleParams)
 
     def __post_init__(self) -> None:
@@ -152,7 +155,8 @@ class Simulator:
 
         randomization = RandomizationConfig() if self.config.randomize else None
         self._scene = Scene(self.track, scenery=self.config.scenery,
-                            randomization=randomization, seed=seed)
+                            randomization=randomization, seed=seed,
+                            conditions=self.config.conditions)
         self._rig = CameraRig(self._scene, cameras=self.config.cameras,
                               width=self.config.image_width, height=self.config.image_height)
 

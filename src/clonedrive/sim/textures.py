@@ -55,16 +55,18 @@ def asphalt(
     edge_rgb: tuple[float, float, float] = (205.0, 170.0, 40.0),
     centre_line: bool = False,
     tyre_tracks: float = 0.0,
+    wear: float = 0.0,
 ) -> np.ndarray:
     """Road texture: grainy asphalt with the edge lines painted in (u across, v along).
 
     ``tyre_tracks`` in [0, 1] darkens two bands where wheels run (the mountain road's look).
+    ``wear`` in [0, 1]: patchier asphalt and edge lines faded away in patches (1: mostly gone).
     """
     rows, cols = ROAD_TEXTURE_SIZE
     coarse = fractal_noise(rng, (rows, cols), 2.6)
     fine = fractal_noise(rng, (rows, cols), 1.4)
     grain = _speckles(rng, (rows, cols), 0.05)
-    shade = 1.0 + 0.10 * coarse + 0.10 * fine + 0.05 * grain
+    shade = 1.0 + (0.10 + 0.15 * wear) * coarse + 0.10 * fine + 0.05 * grain
     u = (np.arange(cols) + 0.5) / cols
     if tyre_tracks > 0:
         metres = u * road_width_m
@@ -79,7 +81,11 @@ def asphalt(
     from_edge = np.minimum(metres, road_width_m - metres)
     line = (from_edge >= EDGE_LINE_INSET_M) & (from_edge < EDGE_LINE_INSET_M + EDGE_LINE_WIDTH_M)
     worn = 0.9 + 0.1 * fine[:, line]
-    image[:, line, :] = np.asarray(edge_rgb)[None, None, :] * worn[..., None]
+    paint = np.asarray(edge_rgb)[None, None, :] * worn[..., None]
+    if wear > 0:  # paint gone where the coarse noise is high, more of it the more worn
+        gone = np.clip((coarse[:, line] + 1.6 - 3.2 * wear) * -1.5, 0.0, 1.0)[..., None]
+        paint = paint * (1.0 - gone) + image[:, line, :] * gone
+    image[:, line, :] = paint
     if centre_line:
         centre = np.abs(metres - road_width_m / 2) < 0.07
         dash = (np.arange(rows) / rows * ROAD_TEXTURE_REPEAT_M) % 6.0 < 3.0

@@ -11,14 +11,9 @@ import numpy as np
 import pytest
 
 from clonedrive.data.augment import AugmentConfig
-from clonedrive.data.batches import (
-    DrivingBatches,
-    ImageCache,
-    ImageDecodeError,
-    decode_rgb,
-    read_rgb,
-)
+from clonedrive.data.batches import DrivingBatches, ImageCache, read_rgb
 from clonedrive.data.recipe import default_recipe_for, expand, parse_recipe
+from clonedrive.images import ImageDecodeError
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 LAKE = FIXTURES / "lake_posix_mixed_columns"
@@ -154,8 +149,3 @@ def test_batches_shapes_flips_weights_and_order(tmp_path: Path) -> None:
     with pytest.raises(IndexError):
         shuffled[len(shuffled)]
 
-
-def test_decode_rgb_rejects_garbage() -> None:
-    with pytest.raises(ImageDecodeError, match="does not decode") as error:
-        decode_rgb(b"not a jpeg", name="frame.jpg")
-    assert error.value.reason == "image_corrupt"

@@ -13,12 +13,8 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.report.writeup import (
-    SECTION_TITLES,
-    _read_stills_in_order,
-    read_stills,
-    write_report,
-)
+from clonedrive.evaluate.video import read_stills, read_stills_in_order
+from clonedrive.report.writeup import SECTION_TITLES, write_report
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 SUBSECTIONS = ("Camera views", "Augmentation", "Speed control", "Track maps",
@@ -177,7 +173,7 @@ def test_stills_are_spread_over_the_video(run_dir) -> None:
     assert all(frame.ndim == 3 and frame.shape[2] == 3 for _, frame in stills)
     # Seeking lands on the same frames as reading through the video.
     fps = 15.0
-    in_order = _read_stills_in_order(run_dir / "eval" / "lake_20mph.mp4",
+    in_order = read_stills_in_order(run_dir / "eval" / "lake_20mph.mp4",
                                      [round(time_s * fps) for time_s in times], fps)
     assert [t for t, _ in in_order] == pytest.approx(times)
     assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(stills, in_order, strict=True))

@@ -22,6 +22,8 @@ import numpy as np
 
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
+from clonedrive.images import ImageDecodeError
+from clonedrive.images import read_rgb as read_image_file
 from clonedrive.keras_backend import import_keras
 from clonedrive.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 
@@ -32,42 +34,9 @@ FRAME_BYTES = int(np.prod(FRAME_SHAPE))
 DEFAULT_MEMORY_LIMIT_BYTES = 2 * 1024**3
 
 
-class ImageDecodeError(ValueError):
-    """An image that cannot be used; ``reason`` is ``image_missing`` (cannot be read),
-    ``image_corrupt`` (does not decode) or ``image_size`` (not 320x160x3)."""
-
-    def __init__(self, reason: str, detail: str) -> None:
-        super().__init__(detail)
-        self.reason = reason
-
-
-def decode_rgb(data: bytes | np.ndarray, out: np.ndarray | None = None, *, name: str = "image"
-               ) -> np.ndarray:
-    """Decode JPEG/PNG bytes to a uint8 RGB array (OpenCV decodes to BGR; converted here)."""
-    buffer = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
-    bgr = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
-    if bgr is None:
-        raise ImageDecodeError("image_corrupt", f"{name} does not decode as an image")
-    if bgr.shape != FRAME_SHAPE:
-        raise ImageDecodeError(
-            "image_size",
-            f"{name} is {bgr.shape[1]}x{bgr.shape[0]}, expected {FRAME_SHAPE[1]}x{FRAME_SHAPE[0]}"
-        )
-    if out is None:
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-    cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB, dst=out)
-    return out
-
-
 def read_rgb(path: str | os.PathLike, out: np.ndarray | None = None) -> np.ndarray:
-    """Read an image file as uint8 RGB (160, 320, 3); ``ImageDecodeError`` if unusable."""
-    try:
-        data = np.fromfile(path, dtype=np.uint8)
-    except OSError as error:
-        raise ImageDecodeError(
-            "image_missing", f"{path} cannot be read: {error.strerror or error}"
-        ) from None
-    return decode_rgb(data, out, name=str(path))
+    """Read a camera image file as uint8 RGB (160, 320, 3); ``ImageDecodeError`` if unusable."""
+    return read_image_file(path, out, shape=FRAME_SHAPE)
 
 
 class ImageCache:

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from clonedrive.images import ImageDecodeError, decode_rgb
 from clonedrive.udacity_spec import IMAGE_SHAPE
 
 CAMERAS = ("center", "left", "right")
@@ -370,9 +371,6 @@ def _verify_images(
     rows: list[LogRow], *, decode: bool, progress: bool
 ) -> tuple[list[LogRow], list[SkippedRow]]:
     """Split rows into those whose three images are fine and those skipped for an image."""
-    if decode:
-        import cv2
-        import numpy as np
 
     def check(row: LogRow) -> LogRow | SkippedRow:
         """The row (with the cameras whose images exist) or why it is skipped."""
@@ -413,26 +411,10 @@ def _verify_images(
                 f"line {row.row}: {camera} image {image_path} is a truncated JPEG "
                 "(no end-of-image marker)",
             )
-        image = None
-        if data:
-            try:
-                image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-            except cv2.error:
-                image = None
-        if image is None:
-            return SkippedRow(
-                row.row,
-                "image_corrupt",
-                f"line {row.row}: {camera} image {image_path} does not decode as an image",
-            )
-        if image.shape != IMAGE_SHAPE:
-            height, width = image.shape[:2]
-            return SkippedRow(
-                row.row,
-                "image_size",
-                f"line {row.row}: {camera} image {image_path} is {width}x{height}, "
-                "expected 320x160",
-            )
+        try:
+            decode_rgb(data, name=str(image_path), shape=IMAGE_SHAPE)
+        except ImageDecodeError as error:
+            return SkippedRow(row.row, error.reason, f"line {row.row}: {camera} image {error}")
         return None
 
     iterable = rows

@@ -1,4 +1,5 @@
-"""H.264 videos of driving: a folder of frames (as Udacity's video.py) or frames one at a time.
+"""H.264 videos of driving: a folder of frames (as Udacity's video.py) or frames one at a time,
+and stills read back from a video (the one reader of videos: the report uses it).
 
 Encoding uses the ffmpeg binary shipped with ``imageio-ffmpeg`` (libx264, yuv420p, mp4, the
 format every player accepts). Files are written under a temporary name and renamed when
@@ -22,6 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from clonedrive.images import ImageDecodeError, read_rgb
+from clonedrive.udacity_spec import CONTROL_HZ
 
 logger = logging.getLogger("clonedrive.video")
 
@@ -229,8 +233,6 @@ def encode_folder(
     A frame that does not decode, or whose size differs from the first good frame, is skipped
     and reported in :attr:`VideoSummary.skipped`. Raises ``ValueError`` if no frame is usable.
     """
-    import cv2
-
     from clonedrive.progress import progress_bar
 
     files = frame_files(folder)
@@ -242,16 +244,17 @@ def encode_folder(
     used = 0
     try:
         for path in progress_bar(files, desc="video", unit="frame", enabled=progress):
-            bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-            if bgr is None:
+            try:
+                rgb = read_rgb(path)
+            except ImageDecodeError:
                 summary.skipped.append((path.name, "does not decode"))
                 continue
-            height, width = bgr.shape[:2]
+            height, width = rgb.shape[:2]
             if writer.size is not None and writer.size != (width, height):
                 reason = f"size {width}x{height}, the video is {writer.size[0]}x{writer.size[1]}"
                 summary.skipped.append((path.name, reason))
                 continue
-            writer.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+            writer.append(rgb)
             used += 1
         if used == 0:
             raise ValueError(f"{folder}: none of the {len(files)} frames could be decoded")
@@ -270,3 +273,60 @@ def frames_to_video(
 ) -> Path:
     """Encode ``folder``'s frames (sorted by name) as H.264 yuv420p mp4; default ``FOLDER.mp4``."""
     return encode_folder(folder, fps, out).path
+
+
+def read_stills(video_path: str | os.PathLike, count: int = 3) -> list[tuple[float, np.ndarray]]:
+    """``count`` frames spread over a video (at 1/6, 1/2 and 5/6 of its length for three), as
+    (time [s], uint8 RGB); empty if the video cannot be read.
+
+    Frames are reached by seeking; if the decoder does not land on the asked frame, the video
+    is read again from the start, skipping frames up to each one.
+    """
+    import cv2
+
+    capture = cv2.VideoCapture(str(video_path))
+    try:
+        if not capture.isOpened():
+            return []
+        fps = capture.get(cv2.CAP_PROP_FPS) or CONTROL_HZ
+        total = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        if total <= 0:
+            return []
+        wanted = sorted({min(total - 1, int((i + 0.5) * total / count)) for i in range(count)})
+        stills = []
+        for target in wanted:
+            capture.set(cv2.CAP_PROP_POS_FRAMES, target)
+            ok, frame = capture.read()
+            if not ok or int(capture.get(cv2.CAP_PROP_POS_FRAMES)) != target + 1:
+                break
+            stills.append((target / fps, cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)))
+        else:
+            return stills
+    finally:
+        capture.release()
+    return read_stills_in_order(video_path, wanted, fps)
+
+
+def read_stills_in_order(video_path: str | os.PathLike, wanted: list[int], fps: float
+                         ) -> list[tuple[float, np.ndarray]]:
+    """Frames ``wanted`` (sorted indices) of a video as (time [s], uint8 RGB), reading from
+    the start without seeking; stops early at the video's end."""
+    import cv2
+
+    capture = cv2.VideoCapture(str(video_path))
+    try:
+        stills = []
+        index = 0
+        for target in wanted:
+            while index < target:  # grab() decodes but does not convert: cheaper than read()
+                if not capture.grab():
+                    return stills
+                index += 1
+            ok, frame = capture.read()
+            index += 1
+            if not ok:
+                break
+            stills.append((target / fps, cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)))
+        return stills
+    finally:
+        capture.release()

@@ -26,8 +26,6 @@ random state is set.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import logging
 import math
@@ -54,11 +52,11 @@ from clonedrive.data.recipe import (
     load_recipe,
     recipe_to_toml,
 )
+from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 
 logger = logging.getLogger(__name__)
 
 CACHE_MODES = ("auto", "memory", "memmap")
-HISTORY_COLUMNS = ("epoch", "loss", "val_loss", "mse", "val_mse", "seconds")
 CACHE_FILE = "image_cache.u8"
 
 
@@ -163,7 +161,7 @@ def train(
         write_json_atomic(out / "dataset.json", data.report)
         _print(progress, data.summary)
         epochs_done = state["epochs_done"]
-        history = _read_history(out / "history.csv")[:epochs_done]
+        history = read_history(out / HISTORY_NAME)[:epochs_done]
         train_batches = DrivingBatches(
             data.train, data.cache, batch_size=config.batch_size, shuffle=True,
             augment=AugmentConfig() if config.augment else None, seed=config.seed,
@@ -265,16 +263,6 @@ def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: 
         )
     out.mkdir(parents=True, exist_ok=True)
     return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
-
-
-def _read_history(path: Path) -> list[dict]:
-    if not path.is_file():
-        return []
-    with open(path, encoding="utf-8", newline="") as handle:
-        return [
-            {key: (int(value) if key == "epoch" else float(value)) for key, value in row.items()}
-            for row in csv.DictReader(handle)
-        ]
 
 
 def _print(enabled: bool, text: str) -> None:
@@ -468,7 +456,7 @@ def _run_recorder_class():
             _save_model_atomic(self.model, self.out / "last.keras")
             if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
                 _save_model_atomic(self.model, self.out / "model.keras")
-            _write_history(self.out / "history.csv", self.history)
+            write_history(self.out / HISTORY_NAME, self.history)
             plot_loss(self.history, self.out / "loss.png")
             best_epoch, best_loss = self.best_epoch()
             self.state = {"epochs_done": epoch + 1, "best_epoch": best_epoch,
@@ -488,15 +476,6 @@ def _run_recorder_class():
 def _save_model_atomic(model, path: Path) -> None:
     with atomic_path(path) as temporary:
         model.save(temporary)
-
-
-def _write_history(path: Path, history: list[dict]) -> None:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=HISTORY_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in history:
-        writer.writerow({key: row[key] for key in HISTORY_COLUMNS})
-    write_text_atomic(path, buffer.getvalue())
 
 
 def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from clonedrive.images import ImageDecodeError, decode_rgb
 from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH, JPEG_QUALITY
 
 # Engine.IO packet types (protocol 3).
@@ -397,8 +398,6 @@ def decode_image(
     Reasons: ``image_not_jpeg``, ``image_size`` (checked from the header before decoding, so a
     huge image is never allocated), ``image_corrupt``. OpenCV decodes to BGR; this returns RGB.
     """
-    import cv2
-
     try:
         size = jpeg_size(jpeg)
     except ValueError as error:
@@ -407,12 +406,10 @@ def decode_image(
         raise TelemetryError(
             "image_size", f"image is {size[0]}x{size[1]}, expected {width}x{height}"
         )
-    bgr = cv2.imdecode(np.frombuffer(jpeg, dtype=np.uint8), cv2.IMREAD_COLOR)
-    if bgr is None:
-        raise TelemetryError("image_corrupt", f"JPEG of {len(jpeg)} bytes does not decode")
-    if bgr.shape != (height, width, 3):
-        raise TelemetryError("image_size", f"decoded image has shape {bgr.shape}")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    try:
+        return decode_rgb(jpeg, name=f"JPEG of {len(jpeg)} bytes", shape=(height, width, 3))
+    except ImageDecodeError as error:
+        raise TelemetryError(error.reason, str(error)) from None
 
 
 def encode_image(image_rgb: np.ndarray, *, quality: int = JPEG_QUALITY) -> bytes:

@@ -1,0 +1,176 @@
+"""What every section of the write-up shares: where the run's pieces are, the files read once
+(training config, dataset report, eval.json), the notes on what was missing, and the small
+helpers for reading pictures and copying figures.
+
+The sections (``clonedrive.report.sections.*``) each take a :class:`ReportContext` and return
+their :class:`~clonedrive.report.document.Section` s; ``clonedrive.report.writeup`` puts them
+together.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from clonedrive.config import atomic_path
+from clonedrive.images import ImageDecodeError, read_rgb
+from clonedrive.model.history import HISTORY_NAME
+from clonedrive.paths import safe_stem
+from clonedrive.report.document import Note, Section
+
+logger = logging.getLogger("clonedrive.report.writeup")
+
+#: Errors that turn a section into a note instead of stopping the report: unreadable or
+#: malformed files (OSError, ValueError incl. JSON and TOML errors), missing or mistyped keys.
+SECTION_ERRORS = (OSError, ValueError, KeyError, TypeError, IndexError)
+
+SECTION_TITLES = {
+    "data": "1. Data",
+    "balance": "2. Balancing the steering",
+    "network": "3. The network",
+    "training": "4. Training",
+    "results": "5. Closed-loop results",
+    "timings": "6. Run timings",
+}
+
+
+@dataclass(frozen=True)
+class ReportConfig:
+    """What ``clonedrive report`` puts in."""
+
+    max_failures: int = 12  #: off-road events shown with their frames
+    stills_per_video: int = 3  #: frames taken from each evaluation video
+    seed: int = 0  #: the random augmentation example's generator seed
+
+    def __post_init__(self) -> None:
+        if self.max_failures < 0:
+            raise ValueError(f"max_failures must be >= 0, got {self.max_failures}")
+        if self.stills_per_video < 1:
+            raise ValueError(f"stills_per_video must be >= 1, got {self.stills_per_video}")
+
+
+@dataclass(frozen=True)
+class RunParts:
+    """Where the pieces of a run are (None / empty when absent)."""
+
+    run_dir: Path
+    recordings: tuple[Path, ...]  # folders holding driving_log.csv under RUN_DIR/data
+    train_dir: Path | None
+    eval_dir: Path | None
+    demo_json: Path | None
+
+
+def find_run_parts(run_dir: str | os.PathLike) -> RunParts:
+    """Locate the recordings, training and evaluation folders of ``run_dir`` (see
+    :mod:`clonedrive.report.writeup`)."""
+    run = Path(run_dir)
+    if not run.is_dir():
+        raise FileNotFoundError(f"run folder {run} does not exist")
+    data = run / "data"
+    recordings: list[Path] = []
+    if (data / "driving_log.csv").is_file():
+        recordings.append(data)
+    if data.is_dir():
+        recordings += sorted(p for p in data.iterdir() if (p / "driving_log.csv").is_file())
+    train_dir = next((d for d in (run / "train", run) if (d / "model.keras").is_file()
+                      or (d / HISTORY_NAME).is_file()), None)
+    eval_candidates = [run / "eval"] + ([train_dir / "eval"] if train_dir else []) + [run]
+    eval_dir = next((d for d in eval_candidates if (d / "eval.json").is_file()), None)
+    demo = run / "demo.json"
+    return RunParts(run_dir=run, recordings=tuple(recordings), train_dir=train_dir,
+                    eval_dir=eval_dir, demo_json=demo if demo.is_file() else None)
+
+
+class ReportContext:
+    """The run's shared inputs, read once, and what the sections found missing."""
+
+    def __init__(self, parts: RunParts, figures_dir: Path, config: ReportConfig) -> None:
+        self.parts = parts
+        self.figures_dir = figures_dir
+        self.config = config
+        self.notes: list[str] = []
+        self.facts: dict = {}  # headline figures gathered on the way, for the intro
+        self.unreadable: dict[str, str] = {}  # file name -> why it could not be read
+        train = parts.train_dir
+        self.train_config = (read_json_or_none(train / "config.json", self.unreadable)
+                             if train else None)
+        self.dataset = (read_json_or_none(train / "dataset.json", self.unreadable)
+                        if train else None)
+        self.eval = (read_json_or_none(parts.eval_dir / "eval.json", self.unreadable)
+                     if parts.eval_dir else None)
+
+    def note(self, text: str) -> Note:
+        """A one-line note in the report, also kept in :attr:`notes`."""
+        self.notes.append(text)
+        return Note(text)
+
+    def guarded(self, title: str, build: Callable[[ReportContext], list[Section]]
+                ) -> list[Section]:
+        """The sections ``build(self)`` makes, or the heading with a note if it failed on bad
+        input."""
+        try:
+            return build(self)
+        except SECTION_ERRORS as error:
+            logger.warning("report section %r skipped: %s", title, error)
+            return [Section(title, blocks=[self.note(
+                f"This section could not be generated: {type(error).__name__}: {error}")])]
+
+    def missing(self, title: str, text: str) -> list[Section]:
+        """A section that is only its heading and a note saying what was missing."""
+        return [Section(title, blocks=[self.note(text)])]
+
+    def headline(self, text: str) -> None:
+        """One line for the report's "In short" list (in the order the sections run)."""
+        self.facts.setdefault("headline", []).append(text)
+
+
+def read_json(path: Path) -> dict:
+    """The JSON object in ``path``; ``ValueError`` naming the file if it holds something else."""
+    with open(path, encoding="utf-8") as handle:
+        data = json.load(handle)
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object")
+    return data
+
+
+def read_json_or_none(path: Path, errors: dict[str, str] | None = None) -> dict | None:
+    """The object in ``path``, or None if there is none or it is unreadable (logged, and the
+    reason put into ``errors[path.name]``)."""
+    if not path.is_file():
+        return None
+    try:
+        return read_json(path)
+    except (OSError, ValueError) as error:
+        logger.warning("ignoring %s: %s", path, error)
+        if errors is not None:
+            errors[path.name] = f"`{path}` is unreadable ({error})"
+        return None
+
+
+def read_image_or_none(path: str | os.PathLike) -> np.ndarray | None:
+    """A picture file as uint8 RGB (:func:`clonedrive.images.read_rgb`), or None if it is
+    missing or does not decode (the section then says so)."""
+    try:
+        return read_rgb(path)
+    except ImageDecodeError:
+        return None
+
+
+def copy_figure(source: Path, figures_dir: Path, name: str) -> Path:
+    """Copy a picture a stage made into the report's figures (atomically)."""
+    target = figures_dir / name
+    with atomic_path(target) as temporary:
+        shutil.copyfile(source, temporary)
+    return target
+
+
+def figure_name(stem: str, prefix: str) -> str:
+    """``<prefix>_<stem>.png``, with ``stem`` (from a run's or track's name) made safe."""
+    return f"{prefix}_{safe_stem(stem)}.png"

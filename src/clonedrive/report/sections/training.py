@@ -1,0 +1,109 @@
+"""4. Training: the settings, the split and what it means, the loss per epoch.
+"""
+
+from __future__ import annotations
+
+import math
+
+from clonedrive.model.history import HISTORY_NAME, read_history
+from clonedrive.report import formatting as fmt
+from clonedrive.report.context import SECTION_TITLES, ReportContext, copy_figure
+from clonedrive.report.document import Figure, Paragraph, Section, Table
+from clonedrive.udacity_spec import CONTROL_HZ
+
+
+def build(ctx: ReportContext) -> list[Section]:
+    title = SECTION_TITLES["training"]
+    train = ctx.parts.train_dir
+    if train is None:
+        return ctx.missing(title, "No training folder: training section skipped.")
+    settings = ctx.train_config
+    history = read_history(train / HISTORY_NAME)
+    if settings is None and not history:
+        return ctx.missing(title, f"No `config.json` or `history.csv` in `{train}`: "
+                                  "training section skipped.")
+    section = Section(title)
+    split = (ctx.dataset or {}).get("split") or {}
+    kind = split.get("kind") or (settings or {}).get("split")
+    if settings is not None:
+        from clonedrive.model.train import TrainConfig
+
+        val_fraction = settings.get("val_fraction", TrainConfig().val_fraction)
+        rows = [
+            ("architecture", f"`{settings.get('model', '?')}`"),
+            ("optimiser", f"Adam, learning rate {settings.get('learning_rate', '?')}"),
+            ("loss", f"{settings.get('loss', 'mse')} on the steering label"),
+            ("batch size", str(settings.get("batch_size", "?"))),
+            ("epochs", f"{len(history)} trained ({settings.get('epochs', '?')} configured)"
+                       + (f", early stopping after {settings['early_stopping_patience']} "
+                          "epochs without improvement"
+                          if settings.get("early_stopping_patience") else "")),
+            ("balancing", "on" if settings.get("balance") else "off"),
+            ("augmentation", "on" if settings.get("augment") else "off"),
+            ("dropout", str(settings.get("dropout", 0.0))),
+            ("split", f"**{kind}**, {fmt.num(100 * val_fraction, 0)} % "
+                      "for validation"
+                      + (f" (blocks of {settings.get('block_s')} s)" if kind == "blocks"
+                         else "")),
+            ("seed", str(settings.get("seed", "?"))),
+        ]
+        section.blocks.append(Table(("setting", "value"), tuple(rows)))
+    else:
+        section.blocks.append(ctx.note(f"No `config.json` in `{train}`: settings unknown."))
+    section.blocks.append(Paragraph(_split_text(kind, split.get("description"))))
+
+    if history:
+        best = min(history, key=lambda r: r.get("val_loss", math.inf)
+                   if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
+        ctx.headline(
+            f"Training: {fmt.plural(len(history), 'epoch')}, best validation loss "
+            f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
+        columns = [c for c in ("loss", "val_loss", "mse", "val_mse", "seconds")
+                   if any(c in row for row in history)]
+        headers = ("epoch", *[{"loss": "training loss", "val_loss": "validation loss",
+                               "mse": "training MSE", "val_mse": "validation MSE",
+                               "seconds": "seconds"}[c] for c in columns], "")
+        table_rows = tuple(
+            (str(row["epoch"]),
+             *[fmt.num(row.get(c), 1 if c == "seconds" else 4) for c in columns],
+             "best" if row is best else "")
+            for row in history)
+        section.blocks.append(Paragraph(
+            "Loss per epoch (training loss is measured on augmented pictures while the "
+            "weights change, validation loss on untouched pictures after the epoch; "
+            "`model.keras` is the epoch with the lowest validation loss):"))
+        section.blocks.append(Table(headers, table_rows, align="l" + "r" * len(columns) + "l"))
+    else:
+        section.blocks.append(ctx.note(f"No `history.csv` in `{train}`: no loss table."))
+    loss_png = train / "loss.png"
+    if loss_png.is_file():
+        figure_path = copy_figure(loss_png, ctx.figures_dir, "loss.png")
+    elif history:
+        from clonedrive.model.train import plot_loss
+
+        figure_path = plot_loss(history, ctx.figures_dir / "loss.png")
+    else:
+        figure_path = None
+    if figure_path is not None:
+        section.blocks.append(Figure(figure_path, "Training and validation loss per epoch."))
+    return [section]
+
+
+def _split_text(kind: str | None, description: str | None) -> str:
+    caveat = (f"Neighbouring frames are 1/{CONTROL_HZ:g} s apart and nearly identical, so a "
+              "**random split** puts a near-twin of almost every validation frame into the "
+              "training set: it flatters the validation loss, which then says little about "
+              "driving.")
+    texts = {
+        "random": f"**Split used: random** (samples drawn at random). {caveat} The closed-loop "
+                  "results below are the real test.",
+        "blocks": "**Split used: blocks**: whole stretches of driving go to validation, so "
+                  f"validation frames have no near-twins in training. {caveat} Blocks avoid "
+                  "that; the validation loss is still measured on the same tracks.",
+        "recording": "**Split used: recording**: whole recordings are held out for validation, "
+                     f"the most honest of the three. {caveat}",
+    }
+    text = texts.get(kind or "", f"**Split used: {kind or 'unknown'}**. {caveat}")
+    if description:
+        text += f" This run: {description}."
+    return text

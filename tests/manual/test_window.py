@@ -6,23 +6,17 @@ from __future__ import annotations
 
 import json
 
-import cv2
 import numpy as np
 
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
+from clonedrive.images import read_rgb
 from clonedrive.manual.session import DrivingSession, ManualConfig
 from clonedrive.manual.window import WINDOW_SIZE, run_window
 from clonedrive.sim.simulator import SimConfig
 
 WIDTH, HEIGHT = WINDOW_SIZE
 VIEW_HEIGHT = WIDTH // 2
-
-
-def read_rgb(path) -> np.ndarray:
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    assert image is not None, path
-    return image[:, :, ::-1]
 
 
 def test_a_scripted_offscreen_drive_records_and_draws_view_and_hud(tmp_path):

@@ -13,7 +13,6 @@ import json
 import re
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 from websockets.asyncio.client import ClientConnection, connect
@@ -21,6 +20,7 @@ from websockets.exceptions import ConnectionClosed, ConnectionClosedError, Inval
 
 from clonedrive.drivers.network import NetworkPolicy, load_policy
 from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.images import read_rgb
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 
@@ -375,8 +375,7 @@ def test_image_folder_saves_each_frame(tmp_path: Path, recorded_jpeg: bytes) -> 
     for path in saved:
         assert re.fullmatch(r"\d{4}_\d{2}_\d{2}_\d{2}_\d{2}_\d{2}_\d{3}\.jpg", path.name)
         assert path.read_bytes() == recorded_jpeg
-    decoded = cv2.imread(str(saved[0]))
-    assert decoded.shape == (160, 320, 3)
+    assert read_rgb(saved[0]).shape == (160, 320, 3)
 
 
 def test_port_in_use_is_reported_by_start() -> None:

@@ -6,7 +6,8 @@ import argparse
 import logging
 import sys
 
-from clonedrive.udacity_spec import PORT, SET_SPEED_MPH
+from clonedrive.udacity.server_config import DriveServerConfig
+from clonedrive.udacity_spec import SET_SPEED_MPH
 
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"
 DESCRIPTION = (
@@ -30,24 +31,46 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="lower the target speed as |steering| grows (down to 40%% of --speed)",
     )
-    parser.add_argument(
-        "--host", default="127.0.0.1", help="interface to bind; 0.0.0.0 serves other machines"
-    )
-    parser.add_argument("--port", type=int, default=PORT,
-                        help=f"TCP port (the simulator uses {PORT})")
-    parser.add_argument(
-        "--status-every", type=float, default=5.0, help="seconds between status lines; 0: none"
-    )
+    defaults = DriveServerConfig()
+    parser.add_argument("--host", default=defaults.host,
+                        help="IP address to bind; 0.0.0.0 serves other machines")
+    parser.add_argument("--port", type=int, default=defaults.port,
+                        help=f"TCP port (the simulator uses {defaults.port})")
+    parser.add_argument("--status-every", type=float, default=defaults.status_interval_s,
+                        help="seconds between status lines; 0: none")
+    parser.add_argument("--max-connections", type=int, default=defaults.max_connections,
+                        help="clients served at once; more are refused (503)")
+    parser.add_argument("--idle-timeout", type=float, default=defaults.idle_timeout_s,
+                        metavar="SECONDS",
+                        help="close a connection that sends no telemetry for this long, so idle "
+                             "clients cannot lock the simulator out")
+    parser.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                        help="accept WebSocket upgrades from this browser origin (repeatable; "
+                             "by default every upgrade with an Origin header is refused: the "
+                             "simulator sends none, a web page always does)")
+    parser.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                        help="also accept this name in the Host header (repeatable; by default "
+                             "only the bound address, loopback names and, on 0.0.0.0, IP "
+                             "addresses)")
+    parser.add_argument("--image-folder-max-mb", type=float,
+                        default=defaults.image_folder_max_mb, metavar="MB",
+                        help="stop saving frames once IMAGE_FOLDER holds this much")
 
 
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # our own lines say enough
-    if not 0 <= args.port <= 65535:
-        print(f"error: --port {args.port} is not a TCP port", file=sys.stderr)
-        return 2
     if args.speed < 0 or args.speed > 30:
         print(f"error: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
+        return 2
+    try:
+        config = DriveServerConfig(
+            host=args.host, port=args.port, image_folder=args.image_folder,
+            status_interval_s=args.status_every, max_connections=args.max_connections,
+            idle_timeout_s=args.idle_timeout, allowed_origins=tuple(args.allow_origin),
+            allowed_hosts=tuple(args.allow_host), image_folder_max_mb=args.image_folder_max_mb)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
 
     from clonedrive.drivers.network import load_policy
@@ -60,28 +83,23 @@ def run(args: argparse.Namespace) -> int:
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
-        print(
-            f"note: listening on {args.host}: other machines can connect and drive", file=sys.stderr
-        )
-    server = DriveServer(
-        policy,
-        host=args.host,
-        port=args.port,
-        image_folder=args.image_folder,
-        status_interval_s=args.status_every,
-    )
+    server = DriveServer(policy, config)
     try:
         server.serve_forever()
+    except ValueError as error:  # the image folder cannot be written
+        print(f"error: {error}", file=sys.stderr)
+        return 1
     except OSError as error:
-        print(f"error: cannot listen on {args.host}:{args.port}: {error}", file=sys.stderr)
+        print(f"error: cannot listen on {args.host}:{args.port}: {error.strerror or error}",
+              file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         pass
     stats = server.stats()
     print(
         f"served {stats.connections} connection(s): {stats.steer} steer, {stats.manual} manual, "
-        f"{stats.safe} safe replies, {stats.bad_total} bad message(s)",
+        f"{stats.safe} safe replies, {stats.bad_total} bad message(s), "
+        f"{sum(stats.refused.values())} refused, {stats.idle_closed} closed idle",
         file=sys.stderr,
     )
     return 0

@@ -28,12 +28,26 @@ before decoding, and at most ``max_connections`` clients are served at once.
 
 Unlike drive.py the server binds 127.0.0.1 unless told otherwise, resets the policy on each
 new connection, and never deletes an existing image folder (frames are added to it).
+
+It cannot be hijacked from a web page or starved by idle clients (:class:`DriveServerConfig`):
+
+* an upgrade that carries an ``Origin`` header (every browser sends one; the simulator sends
+  none) is refused with 403 unless the origin is listed in ``allowed_origins``;
+* the ``Host`` header must name the bound address (loopback names for 127.0.0.1; any IP
+  address when bound to all interfaces) or a name in ``allowed_hosts``, so a DNS-rebinding
+  page cannot reach the server under its own domain name (403 otherwise);
+* a connection that sends no telemetry for ``idle_timeout_s`` is closed (answering pings does
+  not count), so idle clients cannot hold the ``max_connections`` slots and lock the simulator
+  out with 503;
+* saved frames stop once the image folder holds ``image_folder_max_mb`` (counted from what was
+  there at start), with one warning; driving goes on.
 """
 
 from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextvars
 import logging
 import os
 import threading
@@ -51,21 +65,15 @@ from websockets.http11 import Request, Response
 from clonedrive.config import write_bytes_atomic
 from clonedrive.drivers.network import Policy
 from clonedrive.udacity import protocol
-from clonedrive.udacity_spec import PORT
+from clonedrive.udacity.server_config import IDLE_CLOSE_CODE, DriveServerConfig
 
 logger = logging.getLogger("clonedrive.udacity")
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = PORT
-#: A text frame longer than this (characters = bytes: frames are ASCII) gets the safe reply.
-MAX_MESSAGE_BYTES = 1 << 20
 #: ``websockets`` closes a connection (1009) that sends a message longer than this.
 WEBSOCKET_MAX_SIZE = 2 << 20
 SOCKET_PATH = "/socket.io"
 _BAD_LOG_FIRST = 20  # bad messages logged in full per reason, then one in _BAD_LOG_EVERY
 _BAD_LOG_EVERY = 100
-
-
 @dataclass
 class DriveStats:
     """Counters of one server's life (read them with :meth:`DriveServer.stats`)."""
@@ -78,6 +86,10 @@ class DriveStats:
     safe: int = 0  # telemetry-like frames answered with the safe command
     pings: int = 0
     ignored: int = 0  # frames logged and not answered
+    refused: dict[str, int] = field(default_factory=dict)  # upgrade refused: reason -> count
+    idle_closed: int = 0  # connections closed for sending no telemetry
+    frames_saved: int = 0
+    frames_not_saved: int = 0  # image folder over its cap
     bad: dict[str, int] = field(default_factory=dict)  # reason -> count
     last_steering: float = 0.0
     last_throttle: float = 0.0
@@ -92,6 +104,17 @@ class _CloseRequested(Exception):
     """The client asked to close (Engine.IO close or Socket.IO disconnect)."""
 
 
+@dataclass
+class _Connection:
+    """What one connection's handler task knows about it."""
+
+    telemetry: int = 0  #: telemetry events answered with steer or manual
+
+
+#: The connection whose message is being handled (each handler task sets its own).
+_CONNECTION: contextvars.ContextVar[_Connection] = contextvars.ContextVar("drive_connection")
+
+
 class DriveServer:
     """Serve ``policy`` to the Udacity simulator (or any client speaking its protocol).
 
@@ -99,27 +122,25 @@ class DriveServer:
     and returns the bound port (useful with ``port=0``), ``stop()`` ends it. Policy calls run
     one at a time on a worker thread, so the event loop keeps answering pings meanwhile.
     ``image_folder``: save each received frame as ``YYYY_MM_DD_HH_MM_SS_mmm.jpg`` (UTC), the
-    JPEG bytes as received.
+    JPEG bytes as received. Settings come from ``config`` (a :class:`DriveServerConfig`), with
+    any of its fields overridden by keyword (``DriveServer(policy, port=0)``).
     """
 
-    def __init__(
-        self,
-        policy: Policy,
-        host: str = DEFAULT_HOST,
-        port: int = DEFAULT_PORT,
-        image_folder: str | os.PathLike | None = None,
-        *,
-        status_interval_s: float = 5.0,
-        max_message_bytes: int = MAX_MESSAGE_BYTES,
-        max_connections: int = 4,
-    ) -> None:
+    def __init__(self, policy: Policy, config: DriveServerConfig | None = None,
+                 **options: object) -> None:
+        if "image_folder" in options and options["image_folder"] is not None:
+            options["image_folder"] = os.fspath(options["image_folder"])
+        config = replace(config or DriveServerConfig(), **options)
+        self.config = config
         self.policy = policy
-        self.host = host
-        self.port = int(port)
-        self.image_folder = Path(image_folder) if image_folder is not None else None
-        self.status_interval_s = float(status_interval_s)
-        self.max_message_bytes = int(max_message_bytes)
-        self.max_connections = int(max_connections)
+        self.host = config.host
+        self.port = config.port
+        self.image_folder = Path(config.image_folder) if config.image_folder is not None else None
+        self.status_interval_s = config.status_interval_s
+        self.max_message_bytes = config.max_message_bytes
+        self.max_connections = config.max_connections
+        self._image_bytes = 0  # in the image folder: what was there at start plus what we saved
+        self._image_cap_reported = False
         self._stats = DriveStats()
         self._last_frame_ms = 0
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
@@ -172,7 +193,7 @@ class DriveServer:
 
     def stats(self) -> DriveStats:
         """A snapshot of the counters."""
-        return replace(self._stats, bad=dict(self._stats.bad))
+        return replace(self._stats, bad=dict(self._stats.bad), refused=dict(self._stats.refused))
 
     @property
     def url(self) -> str:
@@ -192,7 +213,7 @@ class DriveServer:
         self._loop = asyncio.get_running_loop()
         self._stop_event = asyncio.Event()
         if self.image_folder is not None:
-            self.image_folder.mkdir(parents=True, exist_ok=True)
+            self._image_bytes = prepare_image_folder(self.image_folder)
         self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="policy")
         status_task = None
         try:
@@ -208,6 +229,9 @@ class DriveServer:
             ) as server:
                 self.port = _bound_port(server, self.port)
                 logger.info("drive server listening on %s", self.url)
+                if not self.config.loopback_only:
+                    logger.warning("listening on %s: other machines can connect and drive",
+                                   self.host)
                 if self.image_folder is not None:
                     logger.info("saving received frames to %s", self.image_folder)
                 self._ready.set()
@@ -245,6 +269,16 @@ class DriveServer:
     # ------------------------------------------------------------------ connections
 
     def _check_request(self, connection: ServerConnection, request: Request) -> Response | None:
+        origin = request.headers.get("Origin")
+        if origin is not None and origin not in self.config.allowed_origins:
+            return self._refuse(connection, 403, "origin",
+                                f"browser origin {origin!r} refused: the simulator sends no "
+                                "Origin; allow one with --allow-origin")
+        host = request.headers.get("Host")
+        if not self.config.host_allowed(host):
+            return self._refuse(connection, 403, "host",
+                                f"Host {host!r} does not name this server; allow it with "
+                                "--allow-host")
         url = urlsplit(request.path)
         if url.path.rstrip("/") != SOCKET_PATH:
             return connection.respond(404, f"not found: the drive protocol is at {SOCKET_PATH}/\n")
@@ -256,11 +290,24 @@ class DriveServer:
         if transport != "websocket":
             return connection.respond(400, "only the websocket transport is supported\n")
         if self._stats.active_connections >= self.max_connections:
-            return connection.respond(503, "too many connections\n")
+            return self._refuse(connection, 503, "busy",
+                                f"too many connections ({self.max_connections}; idle ones close "
+                                f"after {self.config.idle_timeout_s:g} s)")
         return None
+
+    def _refuse(self, connection: ServerConnection, status: int, reason: str,
+                detail: str) -> Response:
+        count = self._stats.refused.get(reason, 0) + 1
+        self._stats.refused[reason] = count
+        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
+            logger.warning("refused a connection from %s (%s, #%d): %s",
+                           connection.remote_address, reason, count, detail)
+        return connection.respond(status, detail + "\n")
 
     async def _handle_connection(self, websocket: ServerConnection) -> None:
         sid = uuid.uuid4().hex
+        connection = _Connection()
+        _CONNECTION.set(connection)  # this task's own: the message handlers count into it
         self._stats.connections += 1
         self._stats.active_connections += 1
         logger.info("client connected from %s (sid %s)", websocket.remote_address, sid)
@@ -269,11 +316,24 @@ class DriveServer:
             await loop.run_in_executor(self._executor, self.policy.reset)
             await websocket.send(protocol.open_frame(sid))
             await websocket.send(protocol.CONNECT_FRAME)
-            async for message in websocket:
+            idle_s = self.config.idle_timeout_s
+            deadline = loop.time() + idle_s  # pushed back by each telemetry answered
+            while True:
+                try:
+                    async with asyncio.timeout_at(deadline):
+                        message = await websocket.recv()
+                except TimeoutError:
+                    self._stats.idle_closed += 1
+                    logger.warning("closing connection %s: no telemetry for %g s", sid, idle_s)
+                    await websocket.close(IDLE_CLOSE_CODE, f"no telemetry for {idle_s:g} s")
+                    break
+                answered = connection.telemetry
                 try:
                     reply = await self._on_message(message)
                 except _CloseRequested:
                     break
+                if connection.telemetry > answered:
+                    deadline = loop.time() + idle_s
                 if reply is not None:
                     await websocket.send(reply)
         except ConnectionClosed as error:
@@ -340,6 +400,7 @@ class DriveServer:
         payload = args[0] if args else None
         if payload is None:
             self._stats.manual += 1
+            _CONNECTION.get().telemetry += 1
             return protocol.MANUAL_FRAME
         return await self._on_telemetry(payload)
 
@@ -363,6 +424,7 @@ class DriveServer:
             self._bad("save_error", save_error)
         stats = self._stats
         stats.steer += 1
+        _CONNECTION.get().telemetry += 1
         stats.last_steering, stats.last_throttle = steering, throttle
         stats.last_speed_mph = telemetry.speed_mph
         return reply
@@ -380,6 +442,16 @@ class DriveServer:
         return float(steering), float(throttle), save_error
 
     def _save_frame(self, jpeg: bytes) -> str | None:
+        cap_bytes = self.config.image_folder_max_mb * 1e6
+        if self._image_bytes + len(jpeg) > cap_bytes:
+            self._stats.frames_not_saved += 1
+            if not self._image_cap_reported:
+                self._image_cap_reported = True
+                logger.warning("image folder %s holds %.0f MB, its cap is %g MB "
+                               "(--image-folder-max-mb): received frames are no longer saved",
+                               self.image_folder, self._image_bytes / 1e6,
+                               self.config.image_folder_max_mb)
+            return None
         # Names are strictly increasing: a frame within the same millisecond gets the next one.
         now_ms = max(time.time_ns() // 1_000_000, self._last_frame_ms + 1)
         self._last_frame_ms = now_ms
@@ -390,6 +462,8 @@ class DriveServer:
             write_bytes_atomic(path, jpeg)
         except OSError as error:
             return f"cannot save {path}: {error}"
+        self._image_bytes += len(jpeg)
+        self._stats.frames_saved += 1
         return None
 
     # ------------------------------------------------------------------ bookkeeping
@@ -409,6 +483,27 @@ class DriveServer:
         self._bad(reason, detail + " -> ignored")
         self._stats.ignored += 1
         return None
+
+
+def prepare_image_folder(folder: Path) -> int:
+    """Create ``folder`` if needed, check that frames can be written there, and return the
+    bytes its files hold already. Raises ``ValueError`` naming the folder (not a socket
+    error) when it is a file or cannot be written."""
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"image folder {folder} is an existing file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as error:
+        raise ValueError(f"image folder {folder}: cannot write there ({error.strerror})") from None
+    total = 0
+    with os.scandir(folder) as entries:
+        for entry in entries:
+            if entry.is_file(follow_symlinks=False):
+                total += entry.stat(follow_symlinks=False).st_size
+    return total
 
 
 def _bound_port(server: Server, requested: int) -> int:

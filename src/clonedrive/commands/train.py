@@ -14,7 +14,9 @@ DESCRIPTION = (
     "offset, flips, weight) or from recording folders DIR ... (center + side cameras with "
     "--correction, mirrored copies). Steering is balanced (the write-up's 20-bin method), split "
     "into training and validation sets (--split random|blocks|recording), augmented for "
-    "training, and fitted with Adam on MSE. The --out folder receives model.keras (best "
+    "training, and fitted with Adam on MSE (with --speed-head also on the expert's target "
+    "speed, from target_speed.csv, or the recorded speed for logs without one). The --out "
+    "folder receives model.keras (best "
     "validation loss), last.keras (every epoch), model.h5, history.csv, loss.png, config.json, "
     "recipe.toml, dataset.json and steering_before/after.png. An interrupted run continues "
     "with --resume --out FOLDER."
@@ -60,6 +62,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"batch-preparing threads (default {d.workers})")
     parser.add_argument("--cache", default=given, choices=("auto", "memory", "memmap"),
                         help=f"where decoded images live (default {d.cache})")
+    parser.add_argument("--speed-head", action="store_true", default=given,
+                        help="also learn the expert's target speed (a second output, "
+                             "'target_speed'); drive, evaluate and bench then use it, capped "
+                             "by the set speed. Udacity's own drive.py expects one output")
+    parser.add_argument("--speed-loss-weight", type=float, default=given,
+                        help=f"weight of the speed loss (default {d.speed_loss_weight:g})")
+    parser.add_argument("--init-from", type=str, default=given, metavar="MODEL",
+                        help="start from this model's weights (layers matched by name)")
     parser.add_argument("--no-h5", dest="export_h5", action="store_false", default=given,
                         help="do not write model.h5")
     parser.add_argument("--resume", action="store_true",
@@ -72,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 _CONFIG_OPTIONS = (
     "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
     "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
-    "cache", "export_h5",
+    "cache", "export_h5", "speed_head", "speed_loss_weight", "init_from",
 )
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
+from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
 from clonedrive.images import ImageDecodeError
 from clonedrive.images import read_rgb as read_image_file
 from clonedrive.keras_backend import import_keras
@@ -130,7 +131,9 @@ class DrivingBatches(keras.utils.PyDataset):
 
     ``images``: (N, 160, 320, 3) uint8 RGB (the models cast to float32 themselves);
     ``steering``: (N,) float32 in [-1, 1]; ``weight`` (N,) float32 only when some recording's
-    weight is not 1. With ``shuffle`` the order is a permutation drawn from
+    weight is not 1. With ``speed_head`` the labels are a dict ``{"steering": (N,),
+    "target_speed": (N,)}``, the speed label divided by ``TARGET_SPEED_SCALE_MPH``. With
+    ``shuffle`` the order is a permutation drawn from
     ``(seed, epoch)``; with ``augment`` each batch is augmented with a generator drawn from
     ``(seed, epoch, batch index)``, so results do not depend on worker timing and a resumed
     run sees the same batches it would have seen. ``epoch`` advances in ``on_epoch_end``.
@@ -148,6 +151,7 @@ class DrivingBatches(keras.utils.PyDataset):
         epoch: int = 0,
         workers: int = 1,
         max_queue_size: int = 4,
+        speed_head: bool = False,
     ) -> None:
         super().__init__(workers=workers, use_multiprocessing=False, max_queue_size=max_queue_size)
         if batch_size < 1:
@@ -161,6 +165,7 @@ class DrivingBatches(keras.utils.PyDataset):
         self.augment = augment
         self.seed = int(seed)
         self.with_weights = bool(np.any(samples.weight != 1.0))
+        self.speed_head = bool(speed_head)
         self.epoch = int(epoch)
         self._order = self._make_order()
 
@@ -191,10 +196,13 @@ class DrivingBatches(keras.utils.PyDataset):
         else:
             for position in np.flatnonzero(mirrored):
                 images[position] = cv2.flip(images[position], 1)
-        steering = np.asarray(steering, dtype=np.float32)
+        labels = np.asarray(steering, dtype=np.float32)
+        if self.speed_head:
+            speed = self.samples.target_speed_mph[chosen] / np.float32(TARGET_SPEED_SCALE_MPH)
+            labels = {STEERING_OUTPUT: labels, SPEED_OUTPUT: speed.astype(np.float32)}
         if self.with_weights:
-            return images, steering, self.samples.weight[chosen]
-        return images, steering
+            return images, labels, self.samples.weight[chosen]
+        return images, labels
 
     def on_epoch_end(self) -> None:
         self.epoch += 1

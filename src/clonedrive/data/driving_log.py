@@ -82,6 +82,9 @@ class LogRow:
     speed_mph: float
     #: The cameras whose images are usable: all three, or fewer when a side image is missing.
     cameras: tuple[str, ...] = CAMERAS
+    #: the expert's target speed from the ``target_speed.csv`` sidecar (data.speed_labels);
+    #: None when the log has none (human and Udacity logs): the recorded speed stands in
+    target_speed_mph: float | None = None
 
     def image(self, camera: str) -> Path:
         """The image path of ``camera`` (one of :data:`CAMERAS`)."""
@@ -237,6 +240,7 @@ def read_driving_log(
         parsed = _parse_row(line_number, fields, image_folder)
         (rows if isinstance(parsed, LogRow) else skipped).append(parsed)
 
+    rows = _with_speed_labels(folder, rows, warnings)
     if verify_images != "none":
         rows, bad_images = _verify_images(rows, decode=verify_images == "decode", progress=progress)
         skipped = sorted(skipped + bad_images, key=lambda item: item.row)
@@ -273,6 +277,20 @@ def _read_log_bytes(csv_path: Path) -> bytes:
     if b"\x00" in head:
         raise DrivingLogError(f"{csv_path}: not a CSV file: binary data (NUL bytes)")
     return raw
+
+
+def _with_speed_labels(folder: Path, rows: list[LogRow], warnings: list[str]) -> list[LogRow]:
+    """``rows`` with the expert's target speeds of the sidecar file, if the folder has one."""
+    from dataclasses import replace
+
+    from clonedrive.data.speed_labels import read_speed_labels
+
+    labels = read_speed_labels(folder)
+    if labels is None:
+        return rows
+    warnings.extend(labels.warnings)
+    speeds = labels.speeds_mph
+    return [replace(row, target_speed_mph=speeds.get(row.center.name)) for row in rows]
 
 
 def _lines(text: str) -> Iterator[tuple[int, str]]:

@@ -27,7 +27,9 @@ Steering is in [-1, 1] (wheel angle / 25 deg, positive = right). A sample's labe
 flipped copy. Unknown keys anywhere are errors naming the key and the file.
 
 :func:`expand` reads every recording (through :mod:`clonedrive.data.driving_log`, the only
-CSV reader) and returns flat per-sample arrays (:class:`Samples`).
+CSV reader) and returns flat per-sample arrays (:class:`Samples`). A sample's speed label is
+the expert's target speed where the recording has one (``target_speed.csv``, see
+:mod:`clonedrive.data.speed_labels`), else the row's recorded speed.
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
+from clonedrive.data.speed_labels import label_or_recorded
 from clonedrive.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 
 try:
@@ -100,11 +103,15 @@ class Samples:
     row: np.ndarray  # (n,) int64 1-based CSV line of the sample
     time_s: np.ndarray  # (n,) float64 seconds since the recording's first row
     weight: np.ndarray  # (n,) float32 loss weight
+    #: (n,) float32 the speed label [mph]: the expert's target speed where the log has one
+    #: (``target_speed.csv``), else the recorded speed (human and Udacity logs)
+    target_speed_mph: np.ndarray
     recording_names: tuple[str, ...]
     skipped: dict[str, int]  # reason -> rows skipped by the log reader, all recordings
     skipped_details: list[str]  # "recording: detail" for every skipped row
     rows_read: int  # usable CSV rows over all recordings
     side_images_missing: int = 0  # of those, rows with a side camera off (its image missing)
+    rows_with_target_speed: int = 0  # of those, rows with the expert's target speed
 
     def __len__(self) -> int:
         return int(self.steering.shape[0])
@@ -125,6 +132,7 @@ class Samples:
             row=self.row[indices],
             time_s=self.time_s[indices],
             weight=self.weight[indices],
+            target_speed_mph=self.target_speed_mph[indices],
         )
 
     def compact(self) -> Samples:
@@ -317,13 +325,15 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
     unique_paths: list[Path] = []
     path_index: dict[Path, int] = {}
     columns: dict[str, list] = {
-        key: [] for key in ("image", "camera", "steering", "flip", "recording", "row", "time")
+        key: [] for key in ("image", "camera", "steering", "flip", "recording", "row", "time",
+                            "speed")
     }
     weights: list[np.ndarray] = []
     skipped: dict[str, int] = {}
     skipped_details: list[str] = []
     rows_read = 0
     side_images_missing = 0
+    rows_with_target_speed = 0
 
     for recording_number, spec in enumerate(recipe.recordings):
         log = read_driving_log(spec.path, verify_images=verify_images)
@@ -332,6 +342,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
             skipped_details.append(f"{spec.name}: {item.detail}")
         rows_read += len(log.rows)
         side_images_missing += log.side_images_missing
+        rows_with_target_speed += sum(row.target_speed_mph is not None for row in log.rows)
         if not log.rows:
             continue
         times = _row_times_s(log.rows)
@@ -349,6 +360,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
                     unique_paths.append(image_path)
                 label = float(np.clip(row.steering + spec.steering_offset + corrections[camera],
                                       -1.0, 1.0))
+                speed_label = label_or_recorded(row.target_speed_mph, row.speed_mph)
                 for flipped in (False, True) if spec.flip else (False,):
                     columns["image"].append(index)
                     columns["camera"].append(_CAMERA_CODES[camera])
@@ -357,6 +369,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
                     columns["recording"].append(recording_number)
                     columns["row"].append(row.row)
                     columns["time"].append(time_s)
+                    columns["speed"].append(speed_label)
         added = len(columns["steering"]) - count_before
         weights.append(np.full(added, spec.weight, dtype=np.float32))
 
@@ -370,11 +383,13 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
         row=np.asarray(columns["row"], dtype=np.int64),
         time_s=np.asarray(columns["time"], dtype=np.float64),
         weight=np.concatenate(weights) if weights else np.zeros(0, dtype=np.float32),
+        target_speed_mph=np.asarray(columns["speed"], dtype=np.float32),
         recording_names=tuple(spec.name for spec in recipe.recordings),
         skipped=skipped,
         skipped_details=skipped_details,
         rows_read=rows_read,
         side_images_missing=side_images_missing,
+        rows_with_target_speed=rows_with_target_speed,
     )
 
 

@@ -13,6 +13,9 @@ exactly the Udacity simulator's format (UDACITY.md), through
 - Each row: the three image paths (absolute by default, ``IMG/<name>`` with ``relative_paths``),
   the expert's **clean** steering label (not the noisy steering it applied), the applied throttle
   and brake in [0, 1], and the speed in mph at the moment the images were taken.
+- ``target_speed.csv`` (:mod:`clonedrive.data.speed_labels`): per row, the expert's speed label
+  (the speed it would aim for there with no set-speed cap), the target a network's speed head
+  learns; written before the row it labels. Udacity's tools never open it.
 - ``style="turns"`` writes only the rows in curves; the others are counted as skipped.
 - ``config.json``: the :class:`RecordConfig` plus the track's version, the clonedrive version
   and a list of the recording sessions, written atomically.
@@ -66,6 +69,7 @@ from clonedrive.data.driving_log import (
     read_driving_log,
 )
 from clonedrive.data.recording_lock import RecordingLock
+from clonedrive.data.speed_labels import SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.paths import check_output_folder
 from clonedrive.udacity_spec import JPEG_QUALITY
@@ -204,7 +208,8 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
             while sim.laps_started < config.laps:
                 action = expert.act(obs)
                 if action.record:
-                    names = sink.submit(obs, action.label_steering, action.controls_applied)
+                    names = sink.submit(obs, action.label_steering, action.controls_applied,
+                                        target_speed_mph=action.label_speed_mph)
                     steering.append(action.label_steering)
                     first_name = first_name or names[0]
                     last_name = names[0]
@@ -296,6 +301,7 @@ class RowSink:
         self.writer = DrivingLogWriter(out, header=header, relative_paths=relative_paths,
                                        fsync=False)
         self._sync_fd = os.open(self.writer.csv_path, os.O_RDONLY)
+        self.labels: SpeedLabelWriter | None = None  # opened with the first labelled row
         self._queue: queue.Queue = queue.Queue(maxsize=MAX_PENDING_ROWS)
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._work, name="record-writer", daemon=True)
@@ -305,10 +311,12 @@ class RowSink:
     def rows_written(self) -> int:
         return self.writer.rows_written
 
-    def submit(self, obs, steering: float, controls) -> tuple[str, str, str]:
+    def submit(self, obs, steering: float, controls, *, target_speed_mph: float | None = None
+               ) -> tuple[str, str, str]:
         """Queue one step's row: ``obs``'s three images and speed, the ``steering`` label and
-        the applied ``controls`` (throttle recorded clipped to >= 0, brake as applied).
-        Returns the three image names."""
+        the applied ``controls`` (throttle recorded clipped to >= 0, brake as applied), and
+        with ``target_speed_mph`` the expert's speed label (``target_speed.csv``, written
+        before the row). Returns the three image names."""
         if self._error is not None:
             raise RuntimeError(f"writing the log failed: {self._error}") from self._error
         missing = [camera for camera in CAMERAS if camera not in obs.images]
@@ -318,7 +326,8 @@ class RowSink:
         images = tuple(obs.images[camera] for camera in CAMERAS)
         values = (float(steering), max(controls.throttle, 0.0), controls.brake,
                   max(obs.speed_mph, 0.0))
-        self._queue.put((images, names, values))
+        label = None if target_speed_mph is None else float(target_speed_mph)
+        self._queue.put((images, names, values, label))
         return names
 
     def _work(self) -> None:
@@ -331,14 +340,18 @@ class RowSink:
                 return
             if self._error is not None:
                 continue  # keep consuming so that submit never blocks forever
-            images, names, values = item
+            images, names, values, label = item
             try:
                 paths = [self.image_dir / name for name in names]
                 for image, path in zip(images, paths, strict=True):
                     _write_jpeg(image, path, params)
+                if label is not None:
+                    if self.labels is None:
+                        self.labels = SpeedLabelWriter(self.writer.folder)
+                    self.labels.append(names[0], label)
                 self.writer.append(*paths, *values)
                 if self.writer.rows_written % self.fsync_every_rows == 0:
-                    os.fsync(self._sync_fd)
+                    self._sync()
             except BaseException as error:  # handed to the main thread by submit/close
                 self._error = error
 
@@ -348,12 +361,19 @@ class RowSink:
             self._queue.put(None)
             self._thread.join()
         if self._sync_fd >= 0:
-            os.fsync(self._sync_fd)
+            self._sync()
             os.close(self._sync_fd)
             self._sync_fd = -1
         self.writer.close()
+        if self.labels is not None:
+            self.labels.close()
         if self._error is not None:
             raise RuntimeError(f"writing the log failed: {self._error}") from self._error
+
+    def _sync(self) -> None:
+        if self.labels is not None:
+            os.fsync(self.labels.fileno())
+        os.fsync(self._sync_fd)
 
     def __enter__(self) -> RowSink:
         return self

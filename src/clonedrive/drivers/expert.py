@@ -15,6 +15,9 @@ control step it:
    drag. The set speed is a maximum: a precomputed profile limits the speed to
    ``sqrt(a_lat_max / |curvature|)`` on the line it drives, and a backward pass over the lap
    makes it brake in time (``v^2 <= v_curve^2 + 2 a_brake d``) for every curve ahead.
+   The same profile without the set speed's cap (only the car's top speed) is the expert's
+   **speed label**, ``ExpertAction.label_speed_mph``: the speed it would aim for here at any
+   set speed, which a network's speed head learns (the recorder stores it).
 
 Styles (all in the driving direction, which ``reverse`` flips):
 
@@ -105,6 +108,7 @@ class ExpertAction:
     label_steering: float  #: the expert's clean steering for this state: the training label
     noise: float  #: steering noise added this step (applied - label before clipping)
     target_speed_mph: float  #: speed the expert aims for now
+    label_speed_mph: float  #: the target with no set-speed cap (top speed only): the label
     target_offset_m: float  #: lateral offset of the target line here (+ = right)
     record: bool  #: False where the style does not want the sample (``turns`` on straights)
 
@@ -153,8 +157,11 @@ class ExpertDriver:
         line_k = wide / np.maximum(1.0 - wide * np.abs(self._offsets), 0.2)
         line_k += np.abs(np.gradient(np.gradient(self._offsets, self._ds_m), self._ds_m))
         set_speed = cfg.speed_mph * MPH_TO_MPS
-        limit = np.minimum(np.sqrt(cfg.lateral_accel_mps2 / np.maximum(line_k, 1e-6)), set_speed)
+        curve_limit = np.sqrt(cfg.lateral_accel_mps2 / np.maximum(line_k, 1e-6))
+        limit = np.minimum(curve_limit, set_speed)
         self._speed_profile = _brake_in_time(limit, self._ds_m, cfg.brake_decel_mps2)
+        uncapped = np.minimum(curve_limit, self.vehicle.top_speed_mps)
+        self._label_speed_profile = _brake_in_time(uncapped, self._ds_m, cfg.brake_decel_mps2)
 
     # ------------------------------------------------------------------ the target line
     def offset_m(self, s_m: np.ndarray | float) -> np.ndarray:
@@ -207,13 +214,15 @@ class ExpertDriver:
             noise = self._noise * self._noise_gate(obs, self._noise)
         applied = min(max(label + noise, -1.0), 1.0)
 
-        target_speed = self._on_grid(self._speed_profile, obs.s_m + 0.5 * speed)
+        ahead_m = obs.s_m + 0.5 * speed
+        target_speed = self._on_grid(self._speed_profile, ahead_m)
         throttle, brake = self._speed_control(obs, speed, target_speed)
         return ExpertAction(
             controls_applied=Controls(steering=applied, throttle=throttle, brake=brake),
             label_steering=label,
             noise=noise,
             target_speed_mph=target_speed / MPH_TO_MPS,
+            label_speed_mph=self._on_grid(self._label_speed_profile, ahead_m) / MPH_TO_MPS,
             target_offset_m=self._on_grid(self._offsets, obs.s_m),
             record=self.wants_sample(obs.s_m),
         )

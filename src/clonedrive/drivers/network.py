@@ -2,7 +2,13 @@
 
 The model takes the center camera as RGB uint8-valued ``(160, 320, 3)`` (all preprocessing is
 inside the model) and predicts steering in [-1, 1] (= wheel angle / 25 deg). Throttle comes from
-:class:`SpeedController`, which holds a set speed in mph.
+:class:`SpeedController`, which holds a target speed in mph.
+
+A model may have a **speed head**: a second output named ``target_speed`` (:data:`SPEED_OUTPUT`,
+after the first, ``steering``) predicting the expert's target speed for the scene, normalised by
+:data:`TARGET_SPEED_SCALE_MPH` (1.0 = the car's top speed). :class:`NetworkPolicy` then aims
+for the learned speed, capped by the set speed; a one-output model drives at the set speed (or
+with ``slow_in_curves``, the hand-made rule).
 """
 
 from __future__ import annotations
@@ -15,9 +21,15 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from clonedrive.udacity_spec import IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
+from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
 if TYPE_CHECKING:
     import keras
+
+STEERING_OUTPUT = "steering"  #: name of a model's (first) output
+SPEED_OUTPUT = "target_speed"  #: name of the optional second output, the speed head
+#: A speed head's output 1.0 means this many mph: the car's top speed.
+TARGET_SPEED_SCALE_MPH = VehicleParams.top_speed_mps / MPH_TO_MPS
 
 
 class Policy(Protocol):
@@ -75,11 +87,13 @@ class SpeedController:
 
 
 class NetworkPolicy:
-    """Steer with a Keras model; hold a set speed with :class:`SpeedController`.
+    """Steer with a Keras model; hold a target speed with :class:`SpeedController`.
 
-    ``slow_in_curves``: the target speed falls as the predicted steering grows,
-    ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)`` (by default 40 % of
-    the set speed at |steering| >= 0.4), so a fast set speed does not carry the car off in bends.
+    The target speed is the set speed, or for a model with a speed head (``speed_head``) the
+    learned target speed capped by the set speed, and never below ``min_speed_fraction`` of it.
+    ``slow_in_curves`` (off by default): the hand-made rule, the target falls as the predicted
+    steering grows, ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)``
+    (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
     """
 
     def __init__(
@@ -96,6 +110,7 @@ class NetworkPolicy:
     ) -> None:
         check_model(model)
         self.model = model
+        self.speed_head = has_speed_head(model)
         self.set_speed_mph = float(set_speed_mph)
         self.slow_in_curves = bool(slow_in_curves)
         self.curve_gain = float(curve_gain)
@@ -107,17 +122,23 @@ class NetworkPolicy:
         self.controller.reset()
         self.controller.set_speed_mph = self.set_speed_mph
 
-    def target_speed_mph(self, steering: float, set_speed_mph: float | None = None) -> float:
-        """The speed to aim for when the network steers ``steering``.
+    def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
+                         learned_speed_mph: float | None = None) -> float:
+        """The speed to aim for when the network steers ``steering`` and (with a speed head)
+        predicts ``learned_speed_mph``.
 
         ``set_speed_mph`` defaults to this policy's set speed (an evaluator running several
         cars at different set speeds passes each car's own).
         """
         set_speed = self.set_speed_mph if set_speed_mph is None else float(set_speed_mph)
-        if not self.slow_in_curves:
-            return set_speed
-        fraction = max(self.min_speed_fraction, 1.0 - self.curve_gain * abs(steering))
-        return set_speed * fraction
+        floor = self.min_speed_fraction * set_speed
+        target = set_speed
+        if learned_speed_mph is not None:
+            target = min(max(float(learned_speed_mph), floor), set_speed)
+        if self.slow_in_curves:
+            fraction = max(self.min_speed_fraction, 1.0 - self.curve_gain * abs(steering))
+            target = min(target, set_speed * fraction)
+        return target
 
     def act(self, image_rgb: np.ndarray, speed_mph: float) -> tuple[float, float]:
         if image_rgb.shape != IMAGE_SHAPE or image_rgb.dtype != np.uint8:
@@ -125,13 +146,19 @@ class NetworkPolicy:
                 f"expected a uint8 RGB image of shape {IMAGE_SHAPE}, "
                 f"got {image_rgb.dtype} {image_rgb.shape}"
             )
-        steering = float(self._predict(image_rgb[np.newaxis])[0])
-        self.controller.set_speed_mph = self.target_speed_mph(steering)
+        steering, learned = self._predict(image_rgb[np.newaxis])
+        self.controller.set_speed_mph = self.target_speed_mph(
+            float(steering[0]), learned_speed_mph=None if learned is None else float(learned[0]))
         throttle = self.controller.update(speed_mph)
-        return steering, throttle
+        return float(steering[0]), throttle
 
     def predict_steering(self, images: np.ndarray) -> np.ndarray:
         """Steering in [-1, 1] for a batch of uint8 RGB frames ``(N, 160, 320, 3)`` -> ``(N,)``."""
+        return self.predict(images)[0]
+
+    def predict(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(steering (N,), learned target speed [mph] (N,) or None without a speed head)`` for
+        a batch of uint8 RGB frames ``(N, 160, 320, 3)``."""
         images = np.asarray(images)
         if images.ndim != 4 or images.shape[1:] != IMAGE_SHAPE or images.dtype != np.uint8:
             raise ValueError(
@@ -139,28 +166,46 @@ class NetworkPolicy:
                 f"got {images.dtype} {images.shape}"
             )
         if len(images) == 0:
-            return np.zeros(0, dtype=np.float32)
+            empty = np.zeros(0, dtype=np.float32)
+            return empty, (empty.copy() if self.speed_head else None)
         chunks = [
             self._predict(images[start : start + self.batch_size])
             for start in range(0, len(images), self.batch_size)
         ]
-        return np.concatenate(chunks)
+        steering = np.concatenate([chunk[0] for chunk in chunks])
+        if not self.speed_head:
+            return steering, None
+        return steering, np.concatenate([chunk[1] for chunk in chunks])
 
-    def _predict(self, images: np.ndarray) -> np.ndarray:
+    def _predict(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         # predict_on_batch runs without gradient tracking and works on every backend. One frame
         # through the seed model on the torch CPU backend: 4.5 ms median against 4.7 ms for
         # model(x, training=False) (benchmarks/server_latency.py; same as under torch.no_grad()).
-        output = np.asarray(self.model.predict_on_batch(images.astype(np.float32)))
-        steering = output.reshape(len(images), -1)
+        output = self.model.predict_on_batch(images.astype(np.float32))
+        outputs = list(output) if isinstance(output, list | tuple) else [output]
+        steering = np.asarray(outputs[0]).reshape(len(images), -1)
         if steering.shape[1] != 1:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
         # A NaN prediction steers straight rather than poisoning the controls.
-        return np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+        steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+        if not self.speed_head:
+            return steering, None
+        speed = np.asarray(outputs[1]).reshape(len(images)).astype(np.float32)
+        # A NaN speed means "no opinion": the set speed (the cap) applies.
+        speed = np.nan_to_num(speed, nan=1.0, posinf=1.0, neginf=0.0)
+        return steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH)
+
+
+def has_speed_head(model: keras.Model) -> bool:
+    """True if ``model``'s second output is the speed head (:data:`SPEED_OUTPUT`)."""
+    names = list(getattr(model, "output_names", None) or [])
+    return len(names) == 2 and names[1] == SPEED_OUTPUT
 
 
 def check_model(model: keras.Model) -> None:
-    """Raise ``ValueError`` unless ``model`` takes one (None, 160, 320, 3) input."""
+    """Raise ``ValueError`` unless ``model`` takes one (None, 160, 320, 3) input and has one
+    output (steering) or two (steering, then the speed head :data:`SPEED_OUTPUT`)."""
     inputs = getattr(model, "inputs", None)
     if not inputs or len(inputs) != 1:
         raise ValueError("the steering model must have exactly one input (the center camera)")
@@ -171,6 +216,18 @@ def check_model(model: keras.Model) -> None:
         raise ValueError(
             f"the steering model's input is {shape}, expected {IMAGE_SHAPE} (RGB, uint8 values; "
             "preprocessing belongs inside the model)"
+        )
+    outputs = list(getattr(model, "outputs", None) or [])
+    if len(outputs) == 2 and not has_speed_head(model):
+        names = ", ".join(map(str, getattr(model, "output_names", [])))
+        raise ValueError(
+            f"the steering model has two outputs ({names}); a second output must be named "
+            f"{SPEED_OUTPUT!r} (the speed head)"
+        )
+    if len(outputs) > 2:
+        raise ValueError(
+            f"the steering model has {len(outputs)} outputs; expected 1 (steering) or 2 "
+            f"(steering, {SPEED_OUTPUT})"
         )
 
 

@@ -126,10 +126,14 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
             results += _drive_group(policy, group, config, out, bar)
     finally:
         bar.close()
+    speed_head = bool(getattr(policy, "speed_head", False))
     report = {
         "model": model_path,
         "slow_in_curves": config.slow_in_curves,
+        "speed_head": speed_head,
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
+                         + (", target speed learned (speed head), capped by the set speed"
+                            if speed_head else "")
                          + (", target speed reduced with |steering|" if config.slow_in_curves
                             else ""),
         "runs": results,
@@ -181,10 +185,11 @@ def _drive_group(policy, specs: list[RunSpec], config: EvalConfig, out: Path, ba
         active = list(episodes)
         while active:
             frames = np.stack([ep.obs.images["center"] for ep in active])
-            steering = policy.predict_steering(frames)
-            for episode, steer in zip(active, steering, strict=True):
-                target = policy.target_speed_mph(float(steer),
-                                                 set_speed_mph=episode.spec.speed_mph)
+            steering, learned = policy.predict(frames)
+            for index, (episode, steer) in enumerate(zip(active, steering, strict=True)):
+                target = policy.target_speed_mph(
+                    float(steer), set_speed_mph=episode.spec.speed_mph,
+                    learned_speed_mph=None if learned is None else float(learned[index]))
                 episode.controller.set_speed_mph = target
                 throttle = episode.controller.update(episode.obs.speed_mph)
                 _step(episode, Controls(steering=float(steer), throttle=throttle), out)

@@ -1,7 +1,11 @@
 """Keras 3 steering networks: ``seed`` (the write-up's), ``pilotnet`` (NVIDIA 2016), ``fast``.
 
 Every model takes one 160x320 RGB camera frame with uint8 values and returns one steering
-value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``. The input layer is
+value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``, from the output layer
+``steering``. With ``speed_head=True`` it has a second output, the layer ``target_speed``
+(``(N, 1)``, a Dense unit beside ``steering`` on the last hidden layer): the expert's target
+speed here divided by ``drivers.network.TARGET_SPEED_SCALE_MPH`` (1.0 = the car's top speed).
+The input layer is
 declared ``uint8``: float32 frames holding whole numbers 0..255 (what ``astype(np.float32)``
 of a camera frame gives) are converted exactly; the cast to float happens after cropping,
 which saves converting the 105 cropped rows of every frame (about 5% of a training step).
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
 from clonedrive.keras_backend import import_keras
 from clonedrive.udacity_spec import IMAGE_SHAPE
 
@@ -87,9 +92,19 @@ def _to_data_format(x, data_format: str):
     return x
 
 
+def _heads(inputs, features, seeds: _Seeds, speed_head: bool, name: str) -> keras.Model:
+    """The model with the ``steering`` output on the last hidden layer ``features`` (and, with
+    ``speed_head``, the ``target_speed`` output beside it)."""
+    steering = layers.Dense(1, kernel_initializer=seeds.glorot(), name=STEERING_OUTPUT)(features)
+    if not speed_head:
+        return keras.Model(inputs, steering, name=name)
+    speed = layers.Dense(1, kernel_initializer=seeds.glorot(), name=SPEED_OUTPUT)(features)
+    return keras.Model(inputs, [steering, speed], name=name)
+
+
 def build_seed(
     *, seed: int = 0, dropout: float = 0.0, l2: float = 1e-3,
-    data_format: str = "channels_first",
+    data_format: str = "channels_first", speed_head: bool = False,
 ) -> keras.Model:
     """The write-up's network.
 
@@ -123,8 +138,7 @@ def build_seed(
         if dropout > 0:
             x = layers.Dropout(dropout, seed=seeds.next_int(), name=f"dropout{index}")(x)
     x = layers.Dense(10, activation="relu", kernel_initializer=seeds.glorot(), name="dense3")(x)
-    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
-    return keras.Model(inputs, outputs, name="seed")
+    return _heads(inputs, x, seeds, speed_head, "seed")
 
 
 def _rgb_to_yuv_layer(data_format: str) -> layers.Conv2D:
@@ -144,7 +158,8 @@ def _rgb_to_yuv_weights() -> list[np.ndarray]:
 
 
 def build_pilotnet(
-    *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first"
+    *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first",
+    speed_head: bool = False,
 ) -> keras.Model:
     """NVIDIA's PilotNet (Bojarski et al. 2016) fed like the paper: 66x200 YUV.
 
@@ -176,12 +191,12 @@ def build_pilotnet(
         )(x)
         if dropout > 0 and index < 3:
             x = layers.Dropout(dropout, seed=seeds.next_int(), name=f"dropout{index}")(x)
-    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
-    return keras.Model(inputs, outputs, name="pilotnet")
+    return _heads(inputs, x, seeds, speed_head, "pilotnet")
 
 
 def build_fast(
-    *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first"
+    *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first",
+    speed_head: bool = False,
 ) -> keras.Model:
     """A small network (about 89k parameters) that trains in minutes on 2 CPU cores.
 
@@ -207,8 +222,7 @@ def build_fast(
     if dropout > 0:
         x = layers.Dropout(dropout, seed=seeds.next_int(), name="dropout0")(x)
     x = layers.Dense(32, activation="relu", kernel_initializer=seeds.glorot(), name="dense1")(x)
-    outputs = layers.Dense(1, kernel_initializer=seeds.glorot(), name="steering")(x)
-    return keras.Model(inputs, outputs, name="fast")
+    return _heads(inputs, x, seeds, speed_head, "fast")
 
 
 _BUILDERS = {"seed": build_seed, "pilotnet": build_pilotnet, "fast": build_fast}
@@ -219,7 +233,8 @@ def build_model(name: str, **options) -> keras.Model:
 
     ``options`` are passed to the builder: ``seed`` (int, initialiser seed), ``dropout``
     (float, 0 = off), ``data_format`` (``channels_first``, the default, or
-    ``channels_last``; see the module doc) and, for ``seed`` only, ``l2``.
+    ``channels_last``; see the module doc), ``speed_head`` (bool, the second output
+    ``target_speed``; see the module doc) and, for ``seed`` only, ``l2``.
     """
     try:
         builder = _BUILDERS[name]

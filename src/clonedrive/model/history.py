@@ -2,8 +2,9 @@
 
 One row per finished epoch, columns :data:`HISTORY_COLUMNS`: ``epoch`` (1-based), ``loss`` and
 ``val_loss`` (both include the L2 penalty), ``mse`` and ``val_mse`` (plain mean squared
-steering error), ``seconds`` (the epoch's wall time). Training rewrites the file atomically
-after every epoch; ``train --resume`` and the report read it back.
+steering error), ``seconds`` (the epoch's wall time); a run with a speed head adds
+:data:`SPEED_HISTORY_COLUMNS` (mean squared error of the normalised target speed). Training
+rewrites the file atomically after every epoch; ``train --resume`` and the report read it back.
 """
 
 from __future__ import annotations
@@ -18,15 +19,20 @@ from clonedrive.config import write_text_atomic
 
 HISTORY_NAME = "history.csv"
 HISTORY_COLUMNS = ("epoch", "loss", "val_loss", "mse", "val_mse", "seconds")
+#: Written after HISTORY_COLUMNS when the rows hold them (runs with a speed head).
+SPEED_HISTORY_COLUMNS = ("speed_mse", "val_speed_mse")
 
 
 def write_history(path: str | os.PathLike, history: list[dict]) -> Path:
     """Write ``history`` (dicts holding at least :data:`HISTORY_COLUMNS`) atomically."""
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=HISTORY_COLUMNS, lineterminator="\n")
+    columns = HISTORY_COLUMNS
+    if history and all(key in history[0] for key in SPEED_HISTORY_COLUMNS):
+        columns = HISTORY_COLUMNS + SPEED_HISTORY_COLUMNS
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     for row in history:
-        writer.writerow({key: row[key] for key in HISTORY_COLUMNS})
+        writer.writerow({key: row[key] for key in columns})
     return write_text_atomic(path, buffer.getvalue())
 
 

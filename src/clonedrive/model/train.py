@@ -5,8 +5,9 @@
 - ``model.keras``  the model of the epoch with the lowest validation loss;
 - ``last.keras``   the model and optimiser state after the latest epoch (for ``resume``);
 - ``model.h5``     a legacy HDF5 copy of ``model.keras`` for tools that expect one;
-- ``history.csv``  per epoch: loss, val_loss (both include the L2 penalty), mse, val_mse
-  (plain mean squared steering error), seconds;
+- ``history.csv``  per epoch: loss, val_loss (both include the L2 penalty and, with a speed
+  head, the weighted speed loss), mse, val_mse (plain mean squared steering error), seconds;
+  with a speed head also speed_mse, val_speed_mse (of the normalised target speed);
 - ``loss.png``     training and validation loss per epoch;
 - ``config.json``  the :class:`TrainConfig` (loadable with ``config.load_config``);
 - ``recipe.toml``  the recipe used, with absolute paths (``resume`` reads it back);
@@ -83,6 +84,9 @@ class TrainConfig:
     cache: str = "auto"  # decoded images: memory | memmap (a file in out_dir) | auto
     cache_memory_limit_mb: int = 2048  # "auto" uses a memmap above this size
     export_h5: bool = True  # also write model.h5
+    speed_head: bool = False  # also learn the expert's target speed (output "target_speed")
+    speed_loss_weight: float = 1.0  # weight of the speed MSE beside the steering MSE
+    init_from: str | None = None  # start from this model's weights (layers matched by name)
 
     def __post_init__(self) -> None:
         from clonedrive.data.split import SPLIT_KINDS
@@ -99,6 +103,8 @@ class TrainConfig:
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:
             raise ValueError("early_stopping_patience must be >= 1 or None")
+        if not (self.speed_loss_weight >= 0 and math.isfinite(self.speed_loss_weight)):
+            raise ValueError(f"speed_loss_weight must be >= 0, got {self.speed_loss_weight}")
 
 
 @dataclass(frozen=True)
@@ -165,21 +171,22 @@ def train(
         train_batches = DrivingBatches(
             data.train, data.cache, batch_size=config.batch_size, shuffle=True,
             augment=AugmentConfig() if config.augment else None, seed=config.seed,
-            epoch=epochs_done, workers=config.workers,
+            epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
         )
         val_batches = DrivingBatches(
-            data.val, data.cache, batch_size=config.batch_size, workers=config.workers
+            data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
+            speed_head=config.speed_head,
         )
         if epochs_done > 0:
             model = keras.saving.load_model(out / "last.keras", safe_mode=True)
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
         else:
-            model = build_model(config.model, seed=config.seed, dropout=config.dropout)
-            model.compile(
-                optimizer=keras.optimizers.Adam(learning_rate=config.learning_rate),
-                loss=config.loss,
-                metrics=[keras.metrics.MeanSquaredError(name="mse")],
-            )
+            model = build_model(config.model, seed=config.seed, dropout=config.dropout,
+                                speed_head=config.speed_head)
+            if config.init_from is not None:
+                copied = load_initial_weights(model, config.init_from)
+                _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")
+            _compile(keras, model, config)
         recorder = _run_recorder_class()(out, config, history, state)
         if epochs_done < config.epochs and not recorder.should_stop():
             model.fit(
@@ -209,6 +216,46 @@ def train(
     )
 
 
+def _compile(keras, model, config: TrainConfig) -> None:
+    optimizer = keras.optimizers.Adam(learning_rate=config.learning_rate)
+    if not config.speed_head:
+        model.compile(optimizer=optimizer, loss=config.loss,
+                      metrics=[keras.metrics.MeanSquaredError(name="mse")])
+        return
+    from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
+
+    model.compile(
+        optimizer=optimizer,
+        loss={STEERING_OUTPUT: config.loss, SPEED_OUTPUT: config.loss},
+        loss_weights={STEERING_OUTPUT: 1.0, SPEED_OUTPUT: config.speed_loss_weight},
+        metrics={STEERING_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")],
+                 SPEED_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")]},
+    )
+
+
+def load_initial_weights(model, path: str | os.PathLike) -> int:
+    """Copy into ``model`` the weights of every layer of the model at ``path`` that has the same
+    name and weight shapes (a model without a speed head can start one with it). Returns the
+    number of layers copied; ``ValueError`` if none match or the file does not load."""
+    from clonedrive.drivers.network import load_model
+
+    source = load_model(path)
+    by_name = {layer.name: layer for layer in source.layers}
+    copied = 0
+    for layer in model.layers:
+        weights = layer.get_weights()
+        other = by_name.get(layer.name)
+        if not weights or other is None:
+            continue
+        theirs = other.get_weights()
+        if [w.shape for w in theirs] == [w.shape for w in weights]:
+            layer.set_weights(theirs)
+            copied += 1
+    if copied == 0:
+        raise ValueError(f"{path}: no layer matches the {model.name} model by name and shape")
+    return copied
+
+
 def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike) -> Path:
     """Save the model at ``keras_path`` in the legacy HDF5 format (atomically)."""
     from clonedrive.keras_backend import import_keras
@@ -230,7 +277,7 @@ def load_run_config(out_dir: str | os.PathLike) -> TrainConfig:
 
 # --- run folder -------------------------------------------------------------------------------
 
-_RESUME_MAY_CHANGE = ("epochs", "early_stopping_patience", "workers")
+_RESUME_MAY_CHANGE = ("epochs", "early_stopping_patience", "workers", "init_from")
 
 
 def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: bool) -> dict:
@@ -305,6 +352,10 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     if samples.side_images_missing:
         lines.append(f"{samples.side_images_missing} rows lack a side image: they train with "
                      "the cameras they have")
+    if config.speed_head:
+        lines.append(
+            f"speed labels: the expert's target speed on {samples.rows_with_target_speed} rows, "
+            f"the recorded speed on {samples.rows_read - samples.rows_with_target_speed}")
 
     balance_rng = np.random.default_rng([config.seed, 1])
     if config.balance:
@@ -364,6 +415,7 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         ],
         "rows_read": samples.rows_read,
         "side_images_missing": samples.side_images_missing,
+        "rows_with_target_speed": samples.rows_with_target_speed,
         "skipped_rows": samples.skipped,
         "skipped_row_details": samples.skipped_details[:100],
         "samples_before_balance": int(balanced.counts_before.sum()),
@@ -447,10 +499,13 @@ def _run_recorder_class():
                 "epoch": epoch + 1,
                 "loss": float(logs.get("loss", math.nan)),
                 "val_loss": float(logs.get("val_loss", math.nan)),
-                "mse": float(logs.get("mse", math.nan)),
-                "val_mse": float(logs.get("val_mse", math.nan)),
+                "mse": float(logs.get("mse", logs.get("steering_mse", math.nan))),
+                "val_mse": float(logs.get("val_mse", logs.get("val_steering_mse", math.nan))),
                 "seconds": round(time.perf_counter() - self._epoch_started, 3),
             }
+            if self.config.speed_head:
+                row["speed_mse"] = float(logs.get("target_speed_mse", math.nan))
+                row["val_speed_mse"] = float(logs.get("val_target_speed_mse", math.nan))
             previous_best = self.best_epoch()[1] if self.history else math.inf
             self.history.append(row)
             _save_model_atomic(self.model, self.out / "last.keras")
@@ -493,7 +548,9 @@ def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
     axes.plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
     axes.plot(epochs, [row["val_loss"] for row in history], "s-", label="validation loss")
     axes.set_xlabel("epoch")
-    axes.set_ylabel("loss (steering MSE + any L2 penalty)")
+    speed = bool(history) and "speed_mse" in history[0]
+    axes.set_ylabel("loss (steering MSE + speed MSE + L2)" if speed
+                    else "loss (steering MSE + any L2 penalty)")
     axes.set_title("training and validation loss")
     axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.grid(True, alpha=0.3)

@@ -1,7 +1,9 @@
 """Gymnasium environments: ``clonedrive/Lake-v0``, ``clonedrive/Mountain-v0``,
-``clonedrive/Generated-v0`` (``track_seed=N``). Registered when this module is imported
-(``import clonedrive.envs``, or ``gymnasium.make("clonedrive.envs:clonedrive/Lake-v0")``, which
-imports it); ``import clonedrive`` alone registers nothing.
+``clonedrive/Generated-v0`` (``track_seed=N``, generator v1) and ``clonedrive/Generated-v1``
+(generator v2: ``track_seed=N``, ``difficulty="easy"|"medium"|"hard"``). Registered when this
+module is imported (``import clonedrive.envs``, or
+``gymnasium.make("clonedrive.envs:clonedrive/Lake-v0")``, which imports it); ``import
+clonedrive`` alone registers nothing.
 
 Observation: the center camera image (uint8 RGB 160x320x3) by default, or with
 ``observation="state"`` a float32 vector (speed mph, steering, CTE m, heading error rad,
@@ -26,13 +28,18 @@ class DrivingEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 15}
 
     def __init__(self, track: str = "lake", *, track_seed: int | None = None,
+                 generator: int = 1, difficulty: str = "medium",
                  observation: str = "image", render_mode: str | None = None,
                  sim_config: SimConfig | None = None):
         if observation not in ("image", "state"):
             raise ValueError(f"observation must be 'image' or 'state', got {observation!r}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        name = f"gen:{track_seed}" if track_seed is not None else track
+        if generator not in (1, 2):
+            raise ValueError(f"generator must be 1 or 2, got {generator!r}")
+        name = track
+        if track_seed is not None:
+            name = f"gen:{track_seed}" if generator == 1 else f"gen2:{difficulty}:{track_seed}"
         self.observation_kind = observation
         self.render_mode = render_mode
         cameras = ("center",) if observation == "image" or render_mode else ()
@@ -88,6 +95,7 @@ def register_envs() -> None:
         "clonedrive/Lake-v0": {"track": "lake"},
         "clonedrive/Mountain-v0": {"track": "mountain"},
         "clonedrive/Generated-v0": {"track_seed": 0},
+        "clonedrive/Generated-v1": {"track_seed": 0, "generator": 2},
     }
     for env_id, kwargs in specs.items():
         if env_id not in gym.registry:

@@ -243,7 +243,7 @@ def _family(name: str, description: str, held_out: bool = False, **ranges) -> Co
 #: (sun 18-75 deg, fog x0.4-2.5, the theme's yellow lines, raw frames or JPEG 75).
 FAMILIES: dict[str, ConditionFamily] = {family.name: family for family in (
     _family("clear", "the theme's own look: what the training data is recorded in"),
-    _family("dusk", "sun 4-9 deg above the horizon, warm, dim, long shadows faded",
+    _family("dusk", "sun 4-9 deg above the horizon, warm, dim",
             held_out=True, sun_elevation_deg=(4.0, 9.0), sun_azimuth_deg=(0.0, 360.0),
             light=(0.45, 0.6), warmth=(0.25, 0.4), sky=(0.45, 0.6), fog=(1.0, 2.0),
             shadows=0.5),
@@ -254,8 +254,8 @@ FAMILIES: dict[str, ConditionFamily] = {family.name: family for family in (
             road_brightness=(0.75, 1.3)),
     _family("overgrown", "two to three times the trees, darker shadows", held_out=True,
             vegetation=(2.0, 3.0), shadows=(1.1, 1.3)),
-    _family("sensor", "camera mounted 15 cm higher or lower and pitched +-2.5 deg, JPEG "
-            "quality 25-50, pixel noise", held_out=True, camera_height_m=(-0.15, 0.15),
+    _family("sensor", "camera 15 cm higher or lower, pitched +-2.5 deg, JPEG quality 25-50, "
+            "pixel noise", held_out=True, camera_height_m=(-0.15, 0.15),
             camera_pitch_deg=(-2.5, 2.5), jpeg_quality=(25, 50), pixel_noise_std=(3.0, 8.0)),
     _family("latency", "the car applies each decision 1-3 control steps late",
             held_out=True, latency_steps=(1, 3)),

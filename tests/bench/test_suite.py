@@ -1,0 +1,59 @@
+"""Suite files: v1 is valid and fixed, its families match the library's, bad files are named."""
+
+import pytest
+
+from clonedrive.bench.suite import SuiteError, load_suite
+from clonedrive.sim.conditions import FAMILIES
+
+
+def test_v1_is_a_fixed_list_of_episodes_with_the_named_splits():
+    suite = load_suite("v1")
+    assert suite.id == "v1"
+    assert suite.split_names() == ["train-tracks", "new-tracks-easy", "new-tracks-medium",
+                                   "new-tracks-hard", "new-conditions",
+                                   "new-tracks+new-conditions"]
+    first, again = suite.episodes(), load_suite("v1").episodes()
+    assert first == again
+    assert len({spec.key for spec in first}) == len(first)
+    held = {spec.family for spec in first if spec.split.startswith("new-tracks+")}
+    assert held and all(suite.families[name].held_out for name in held)
+    assert {spec.speed_mph for spec in first if spec.split == "new-tracks-hard"} == {20.0, 30.0}
+    # the suite's condition families are the library's (one definition, checked)
+    for name, family in suite.families.items():
+        assert family == FAMILIES[name], name
+
+
+def write(tmp_path, text):
+    path = tmp_path / "suite.toml"
+    path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+BASE = """
+id = "mine"
+[[split]]
+name = "a"
+tracks = ["lake"]
+speeds_mph = [20.0]
+conditions = ["clear"]
+[conditions.clear]
+"""
+
+
+def test_a_copied_suite_can_be_edited(tmp_path):
+    suite = load_suite(write(tmp_path, BASE))
+    assert [spec.track for spec in suite.episodes()] == ["lake"]
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (BASE.replace('id = "mine"', ""), "id must be"),
+    (BASE + "colour = 1\n", "unknown field 'colour'"),
+    (BASE.replace('"lake"', '"gen2:brutal:1"'), "unknown difficulty"),
+    (BASE.replace("[20.0]", "[45.0]"), "speeds_mph"),
+    (BASE.replace('["clear"]', '["dusk"]'), "'dusk' is not defined"),
+    (BASE.replace("name = \"a\"", "name = \"a\"\nlaps = 2"), "unknown key"),
+    ("id = [", "not valid TOML"),
+])
+def test_bad_suites_say_where(tmp_path, change, message):
+    with pytest.raises(SuiteError, match=message):
+        load_suite(write(tmp_path, change))

@@ -22,6 +22,7 @@ VERBS: list[tuple[str, str]] = [
     ("drive", "drive"),
     ("autonomous", "autonomous"),
     ("evaluate", "evaluate"),
+    ("saliency", "saliency"),
     ("video", "video"),
     ("report", "report"),
 ]

@@ -1,0 +1,87 @@
+"""VisualBackProp: masks from the conv layers' averaged feature maps, mapped back to the frame;
+`clonedrive saliency` writes overlays for images and logs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.cli import main
+from clonedrive.model.architectures import CROP_BOTTOM_PX, CROP_TOP_PX, build_model
+from clonedrive.model.saliency import VisualBackProp, _spread, overlay
+from clonedrive.udacity_spec import IMAGE_SHAPE
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
+
+
+def test_spread_is_the_transposed_convolution_with_ones() -> None:
+    mask = np.array([[[1.0, 2.0]]], dtype=np.float32)  # 1x2 map
+    # kernel 3x3, stride 2: output 3x5, the two patches overlap in column 2.
+    out = _spread(mask, (3, 3), (2, 2))
+    assert out.shape == (1, 3, 5)
+    np.testing.assert_array_equal(out[0, 0], [1, 1, 3, 2, 2])
+    np.testing.assert_array_equal(out[0, 2], [1, 1, 3, 2, 2])
+
+
+def bright_stripe_frames() -> np.ndarray:
+    """Grey frames with one bright vertical stripe in the cropped band (a road line)."""
+    frames = np.full((2, *IMAGE_SHAPE), 90, dtype=np.uint8)
+    frames[0, :, 100:108] = 255
+    frames[1, :, 220:228] = 255
+    return frames
+
+
+@pytest.mark.parametrize("name", ["fast", "seed", "pilotnet"])
+def test_masks_cover_the_cropped_band_and_follow_the_features(name) -> None:
+    model = build_model(name, seed=2, data_format="channels_last")
+    saliency = VisualBackProp(model)
+    # The frozen RGB->YUV 1x1 convolution of pilotnet is not a feature layer.
+    assert all(stage.kernel != (1, 1) for stage in saliency.stages)
+    masks = saliency.masks(bright_stripe_frames())
+    assert masks.shape == (2, 160, 320) and masks.dtype == np.float32
+    assert masks.min() >= 0.0 and masks.max() == pytest.approx(1.0)
+    assert not masks[:, :CROP_TOP_PX].any() and not masks[:, 160 - CROP_BOTTOM_PX:].any()
+    # Same weights, channels first or last: the same masks.
+    first = VisualBackProp(build_model(name, seed=2, data_format="channels_first"))
+    np.testing.assert_allclose(first.masks(bright_stripe_frames()), masks, atol=1e-4)
+
+
+def test_a_model_without_convolutions_is_refused() -> None:
+    import keras
+
+    inputs = keras.Input(shape=IMAGE_SHAPE)
+    outputs = keras.layers.Dense(1)(keras.layers.GlobalAveragePooling2D()(inputs))
+    with pytest.raises(ValueError, match="no convolutional layer"):
+        VisualBackProp(keras.Model(inputs, outputs))
+
+
+def test_overlay_paints_the_mask_green() -> None:
+    image = np.full(IMAGE_SHAPE, 100, np.uint8)
+    mask = np.zeros(IMAGE_SHAPE[:2], np.float32)
+    mask[:, :10] = 1.0
+    painted = overlay(image, mask)
+    assert painted[0, 0, 1] > 200 and painted[0, 0, 0] < 100  # green where the mask is
+    assert tuple(painted[0, 200]) == (70, 70, 70)  # darkened elsewhere
+
+
+def test_saliency_command_on_images_and_logs(tmp_path, capsys) -> None:
+    model = build_model("fast", seed=0, speed_head=True)
+    model.save(tmp_path / "model.keras")
+    log = FIXTURES / "lake_posix_mixed_columns"
+    image = sorted((log / "IMG").glob("center_*.jpg"))[0]
+    out = tmp_path / "saliency"
+    code = main(["saliency", str(tmp_path / "model.keras"), str(image), str(log),
+                 "--frames-per-log", "3", "--out", str(out)])
+    assert code == 0
+    report = json.loads((out / "saliency.json").read_text())
+    assert len(report["frames"]) == 4 and report["layers"] == ["conv1", "conv2", "conv3"]
+    names = [frame["overlay"] for frame in report["frames"]]
+    assert len(set(names)) == 4 and all((out / name).is_file() for name in names)
+    assert all("target_speed_mph" in frame for frame in report["frames"])
+    # Bad input: one clear line, nothing written outside --out.
+    assert main(["saliency", str(tmp_path / "model.keras"), str(tmp_path / "nothing.jpg"),
+                 "--out", str(tmp_path / "bad")]) == 2
+    assert "nothing.jpg" in capsys.readouterr().err

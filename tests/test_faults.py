@@ -11,11 +11,14 @@ import json
 import math
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+import pytest
 
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
@@ -50,12 +53,19 @@ print(json.dumps(results))
 """
 
 
-def run_limited(*commands: list, timeout_s: float = 120.0) -> list[tuple[int, str]]:
+def run_limited(*commands: list, memory_limit: int | None = PROBE_MEMORY_LIMIT,
+                file_size_limit: int | None = None, timeout_s: float = 300.0
+                ) -> list[tuple[int, str]]:
     """Run each ``clonedrive ARGV`` of ``commands`` in one subprocess whose address space is
-    capped at :data:`PROBE_MEMORY_LIMIT`; (exit status, stderr) per command."""
+    capped at ``memory_limit`` bytes and whose files may not grow past ``file_size_limit``
+    (writes beyond fail with EFBIG); (exit status, stderr) per command."""
 
     def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (PROBE_MEMORY_LIMIT, PROBE_MEMORY_LIMIT))
+        if memory_limit is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (memory_limit, memory_limit))
+        if file_size_limit is not None:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a failed write, not a killed process
+            resource.setrlimit(resource.RLIMIT_FSIZE, (file_size_limit, file_size_limit))
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
     argvs = json.dumps([[str(arg) for arg in argv] for argv in commands])
@@ -182,3 +192,116 @@ def test_a_second_recorder_into_the_same_folder_is_refused(tmp_path):
     assert len(list((out / "IMG").glob("*.jpg"))) == 3 * rows
     assert json.loads((out / "config.json").read_text())["track"] == "lake"
     assert not lock.exists()
+
+
+# --------------------------------------------------------------------------- full and read-only
+
+def mount_tmpfs(folder: Path, options: str) -> bool:
+    """Mount a tmpfs on ``folder`` if this process may (root, ``mount`` present)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        return False
+    result = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                            capture_output=True)
+    return result.returncode == 0
+
+
+def unmount(folder: Path) -> None:
+    subprocess.run(["umount", str(folder)], check=True, capture_output=True)
+
+
+@pytest.fixture()
+def full_disk(tmp_path):
+    """(folder, small_disk): a 192 KiB tmpfs where it can be mounted; else a plain folder, and
+    the probes run in a subprocess whose files may not grow past 4 KiB (EFBIG)."""
+    folder = tmp_path / "disk"
+    mounted = mount_tmpfs(folder, "size=192k")
+    try:
+        yield folder, mounted
+    finally:
+        if mounted:
+            unmount(folder)
+
+
+@pytest.fixture()
+def read_only(tmp_path):
+    """A folder nothing can be written to: a read-only tmpfs for root (whom permissions do not
+    stop), a mode-555 folder for anyone else."""
+    folder = tmp_path / "read_only"
+    if os.geteuid() == 0:
+        if not mount_tmpfs(folder, "ro,size=64k"):
+            pytest.skip("root ignores permissions, and no tmpfs can be mounted here")
+        try:
+            yield folder
+        finally:
+            unmount(folder)
+    else:
+        folder.mkdir()
+        folder.chmod(0o555)
+        try:
+            yield folder
+        finally:
+            folder.chmod(0o755)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory) -> Path:
+    from clonedrive.drivers.tiny_model import build_tiny_model
+
+    path = tmp_path_factory.mktemp("model") / "tiny.keras"
+    build_tiny_model().save(path)
+    return path
+
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures" / "udacity"
+
+
+def writing_probes(root: Path) -> dict[str, list]:
+    return {
+        "record": ["record", "--track", "lake", "--seconds", "4", "--no-scenery",
+                   "--out", root / "rec"],
+        "train": ["train", FIXTURES / "stationary", "--model", "fast", "--epochs", "1",
+                  "--out", root / "train", "--json"],
+        "tracks": ["tracks", "--track", "lake", "--no-strip", "--out", root / "maps"],
+    }
+
+
+def test_a_full_disk_gets_one_line_naming_the_path(full_disk, capsys):
+    disk, small = full_disk
+    probes = writing_probes(disk)
+    if small:
+        results = [run_cli(capsys, *argv)[::2] for argv in probes.values()]
+    else:
+        results = run_limited(*probes.values(), file_size_limit=4096)
+    for name, (code, err) in zip(probes, results, strict=True):
+        assert_one_clear_line(code, err)
+        assert str(disk) in err and ("disk full" in err or "file too large" in err), (name, err)
+    # What was recorded before the disk filled is whole: every row's images decode.
+    log = read_driving_log(disk / "rec", verify_images="decode")
+    assert log.skipped == []
+
+
+def test_a_read_only_folder_gets_one_line_naming_the_path(read_only, tiny_model, tmp_path,
+                                                          capsys):
+    circle = tmp_path / "circle.json"
+    circle.write_text(json.dumps(circle_track("circle")))
+    probes = writing_probes(read_only)
+    probes["evaluate"] = ["evaluate", tiny_model, "--track", circle, "--laps", "1",
+                          "--out", read_only / "eval"]
+    probes["drive"] = ["drive", tiny_model, read_only / "frames", "--port", "0"]
+    for name, argv in probes.items():
+        code, _, err = run_cli(capsys, *argv)
+        assert_one_clear_line(code, err)
+        assert str(read_only) in err, (name, err)
+        assert "socket" not in err and "listen" not in err, (name, err)
+    assert not any(read_only.iterdir())
+
+
+def test_record_out_naming_an_existing_file_is_refused(tmp_path, capsys):
+    existing = tmp_path / "notes.txt"
+    existing.write_text("keep me")
+    code, _, err = run_cli(capsys, "record", "--track", "lake", "--seconds", "1",
+                           "--no-scenery", "--out", existing)
+    assert_one_clear_line(code, err)
+    assert "is an existing file" in err and str(existing) in err
+    assert existing.read_text() == "keep me"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 # (verb, module under clonedrive.commands) in data-flow order.
@@ -77,6 +78,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the output went to a pipe that closed (| head): nothing to say
+        sys.stdout = open(os.devnull, "w")  # Python flushes stdout at exit
+        return 1
+    except OSError as error:
+        # A full disk, a read-only folder, a missing permission: one line naming the path.
+        from clonedrive.paths import FILE_SYSTEM_ERRNOS, describe_os_error
+
+        if error.errno not in FILE_SYSTEM_ERRNOS:
+            raise
+        print(f"clonedrive {args.verb}: {describe_os_error(error)}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

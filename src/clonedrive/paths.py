@@ -8,6 +8,7 @@ path we are about to write lies inside the output folder.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
 import re
@@ -61,3 +62,53 @@ def check_output_folder(path: str | os.PathLike, *, option: str = "--out") -> Pa
         if candidate.exists():
             break
     return path
+
+
+def prepare_output_folder(path: str | os.PathLike, *, option: str = "--out") -> Path:
+    """Create the output folder ``path`` (see :func:`check_output_folder`) and check that a
+    file can be made in it, so that a read-only place fails at once, before any work, with an
+    ``OSError`` naming it."""
+    path = check_output_folder(path, option=option)
+    path.mkdir(parents=True, exist_ok=True)
+    probe = path / f".clonedrive-write-test-{os.getpid()}"
+    try:
+        probe.touch()
+    finally:
+        probe.unlink(missing_ok=True)
+    return path
+
+
+#: OS errors that say where a file could not be written or read -- the disk, the folder, its
+#: permissions -- rather than that the program is wrong; :func:`describe_os_error` names them.
+FILE_SYSTEM_ERRNOS = {
+    errno.ENOSPC: "no space left on the device (disk full)",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EFBIG: "file too large (a file-size limit was reached)",
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied (a read-only folder?)",
+    errno.EPERM: "operation not permitted",
+    errno.ENAMETOOLONG: "file name too long",
+    errno.EISDIR: "is a folder, expected a file",
+    errno.ENOTDIR: "a part of the path is a file, not a folder",
+    errno.EEXIST: "already exists",
+    errno.ENOENT: "no such file or folder",
+    errno.EIO: "input/output error (a failing disk?)",
+}
+
+
+def describe_os_error(error: OSError) -> str:
+    """One line naming the path and what went wrong, for an error of
+    :data:`FILE_SYSTEM_ERRNOS` (others: the error's own text)."""
+    reason = FILE_SYSTEM_ERRNOS.get(error.errno) or error.strerror or str(error)
+    path = error.filename if error.filename is not None else None
+    return f"{os.fsdecode(path)}: {reason}" if path is not None else reason
+
+
+def with_filename(error: OSError, path: str | os.PathLike) -> OSError:
+    """``error`` if it names its file, else the same error (same type and errno) naming
+    ``path``: ``os.write`` and ``fsync`` errors say only "No space left on device"."""
+    if error.filename is not None or error.errno is None:
+        return error
+    named = OSError(error.errno, error.strerror, os.fspath(path))
+    named.__cause__ = error
+    return named

@@ -44,6 +44,7 @@ def run(args) -> int:
 
     from clonedrive.drivers.network import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
+    from clonedrive.paths import prepare_output_folder
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 
@@ -66,6 +67,11 @@ def run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path(args.model).resolve().parent / "eval"
+    try:
+        prepare_output_folder(out)  # a read-only or full place fails now, not after driving
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     report = evaluate(policy, config, out, progress=not args.json, model_path=str(args.model))
     if args.json:
         print(json.dumps(report, indent=2))

@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.data.recorder import RecordConfig, record
+    from clonedrive.data.recorder import RecordConfig, RecordingWriteError, record
     from clonedrive.world.track import TrackError
 
     try:
@@ -78,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, TrackError) as error:
         print(f"clonedrive record: {error}", file=sys.stderr)
         return 2
+    except RecordingWriteError as error:  # a full disk: the rows written so far are whole
+        print(f"clonedrive record: {error}", file=sys.stderr)
+        return 1
     if args.json:
         print(json.dumps(summary.to_dict()))
     else:

@@ -29,15 +29,18 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from clonedrive.paths import inside, safe_stem
+    from clonedrive.paths import inside, prepare_output_folder, safe_stem
     from clonedrive.world.catalog import builtin_track_names, load_track
     from clonedrive.world.track import TrackError
 
     names = args.track or builtin_track_names()
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        print(f"error: --out {out} is a file; give a folder for the maps", file=sys.stderr)
-        return 2
+    if not args.no_images:
+        try:
+            prepare_output_folder(out)
+        except ValueError as error:  # a file; a read-only folder is an OSError (one line)
+            print(f"error: {error}", file=sys.stderr)
+            return 2
     rows = []
     stems: set[str] = set()
     for name in names:

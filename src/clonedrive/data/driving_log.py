@@ -31,6 +31,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from clonedrive.images import ImageDecodeError, decode_rgb
+from clonedrive.paths import with_filename
 from clonedrive.udacity_spec import IMAGE_SHAPE
 
 CAMERAS = ("center", "left", "right")
@@ -556,11 +557,14 @@ class DrivingLogWriter:
 
     def _write_line(self, line: str) -> None:
         data = (line + "\n").encode("utf-8")
-        written = os.write(self._fd, data)
-        while written < len(data):  # a short write to a regular file is rare; finish it
-            written += os.write(self._fd, data[written:])
-        if self.fsync:
-            os.fsync(self._fd)
+        try:
+            written = os.write(self._fd, data)
+            while written < len(data):  # a short write to a regular file is rare; finish it
+                written += os.write(self._fd, data[written:])
+            if self.fsync:
+                os.fsync(self._fd)
+        except OSError as error:  # ENOSPC and friends name no file: name the log
+            raise with_filename(error, self.csv_path) from None
 
     def _repair_tail(self) -> None:
         """Terminate or truncate an incomplete last line left by a killed writer."""

@@ -71,7 +71,7 @@ from clonedrive.data.driving_log import (
 from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.speed_labels import SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
-from clonedrive.paths import check_output_folder
+from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.udacity_spec import JPEG_QUALITY
 
 CONFIG_NAME = "config.json"
@@ -318,7 +318,7 @@ class RowSink:
         with ``target_speed_mph`` the expert's speed label (``target_speed.csv``, written
         before the row). Returns the three image names."""
         if self._error is not None:
-            raise RuntimeError(f"writing the log failed: {self._error}") from self._error
+            raise RecordingWriteError(_write_failure(self._error)) from self._error
         missing = [camera for camera in CAMERAS if camera not in obs.images]
         if missing:
             raise RuntimeError(f"the simulator rendered no {', '.join(missing)} image(s)")
@@ -368,12 +368,15 @@ class RowSink:
         if self.labels is not None:
             self.labels.close()
         if self._error is not None:
-            raise RuntimeError(f"writing the log failed: {self._error}") from self._error
+            raise RecordingWriteError(_write_failure(self._error)) from self._error
 
     def _sync(self) -> None:
         if self.labels is not None:
             os.fsync(self.labels.fileno())
-        os.fsync(self._sync_fd)
+        try:
+            os.fsync(self._sync_fd)
+        except OSError as error:  # ENOSPC names no file: name the log
+            raise with_filename(error, self.writer.csv_path) from None
 
     def __enter__(self) -> RowSink:
         return self
@@ -383,14 +386,33 @@ class RowSink:
 
 
 def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
-    """Write an RGB image as a JPEG atomically: encode to a temp name, then rename."""
+    """Write an RGB image as a JPEG atomically: encode in memory, write a temp name, rename.
+    A full disk or a read-only folder raises ``OSError`` naming the file."""
     import cv2
 
     temp = path.with_name(f".{path.stem}{TEMP_SUFFIX}")
-    # OpenCV writes BGR: the reversed channel view is copied by the binding, not re-encoded.
-    if not cv2.imwrite(str(temp), image_rgb[:, :, ::-1], params):
-        raise RuntimeError(f"OpenCV could not write {temp}")
-    os.replace(temp, path)
+    # OpenCV encodes BGR: the reversed channel view is copied by the binding, not re-encoded.
+    ok, encoded = cv2.imencode(".jpg", image_rgb[:, :, ::-1], params)
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode the image for {path}")
+    try:
+        with open(temp, "wb") as handle:
+            handle.write(encoded.data)
+        os.replace(temp, path)
+    except OSError as error:
+        temp.unlink(missing_ok=True)
+        raise with_filename(error, temp) from None
+
+
+class RecordingWriteError(RuntimeError):
+    """Writing the recording failed (a full disk, a read-only folder...); every row written
+    before is whole. The message is one line naming the file."""
+
+
+def _write_failure(error: BaseException) -> str:
+    if isinstance(error, OSError):
+        return f"writing the log failed: {describe_os_error(error)}"
+    return f"writing the log failed: {error}"
 
 
 def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, datetime]:

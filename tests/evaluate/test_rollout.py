@@ -1,12 +1,15 @@
 import json
+from importlib import resources
 
 import numpy as np
 import pytest
 
 from clonedrive.drivers.network import NetworkPolicy
 from clonedrive.drivers.tiny_model import build_tiny_model
-from clonedrive.evaluate.metrics import autonomy_pct, smoothness
+from clonedrive.episode.trace import autonomy_pct, smoothness
 from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table, run_specs
+
+LAKE_JSON = resources.files("clonedrive.world") / "tracks" / "lake.json"
 
 
 def test_autonomy_and_smoothness_follow_their_definitions():
@@ -78,3 +81,63 @@ def test_lock_step_batching_gives_the_same_runs_as_one_at_a_time(tmp_path, tiny_
         assert a["interventions"] == b["interventions"]
         assert a["distance_m"] == pytest.approx(b["distance_m"], rel=1e-3)
         assert a["mean_abs_cte_m"] == pytest.approx(b["mean_abs_cte_m"], abs=5e-3)
+
+
+def test_a_track_given_by_an_absolute_path_names_its_outputs_by_its_name(tmp_path, tiny_policy):
+    """Regression: ``evaluate MODEL --track /some/dir/mytrack.json`` drove the whole run and then
+    crashed building the map's file name from the track's path, losing every result."""
+    track = json.loads(LAKE_JSON.read_text())
+    track["name"] = "my track"
+    folder = tmp_path / "some" / "dir"
+    folder.mkdir(parents=True)
+    path = folder / "mytrack.json"
+    path.write_text(json.dumps(track))
+    out = tmp_path / "eval"
+    config = EvalConfig(tracks=(str(path), "lake"), speeds_mph=(15.0,), laps=1, scenery=False,
+                        max_seconds=2.0)
+    report = evaluate(tiny_policy, config, out, progress=False)
+    first, second = report["runs"]
+    assert first["track"] == str(path)  # eval.json keeps what the user asked for
+    assert (out / first["map_png"]).is_file() and "/" not in first["map_png"]
+    assert first["map_png"].startswith("my_track_15mph")
+    assert second["map_png"] == "lake_15mph_map.png"
+    assert report["complete"] and sorted(p.name for p in out.iterdir() if p.suffix == ".png") \
+        == sorted([first["map_png"], second["map_png"]])
+
+
+def test_two_tracks_with_one_name_get_distinct_files(tmp_path, tiny_policy):
+    copy = tmp_path / "lake.json"
+    copy.write_text(LAKE_JSON.read_text())  # also named "lake"
+    config = EvalConfig(tracks=("lake", str(copy)), speeds_mph=(15.0,), laps=1, scenery=False,
+                        max_seconds=1.0)
+    report = evaluate(tiny_policy, config, tmp_path / "eval", progress=False)
+    assert [run["map_png"] for run in report["runs"]] == ["lake_15mph_map.png",
+                                                           "lake_15mph-2_map.png"]
+
+
+class FailsLater(NetworkPolicy):
+    """A network whose inference breaks after ``calls`` batches (a late error)."""
+
+    def __init__(self, model, calls: int) -> None:
+        super().__init__(model, set_speed_mph=15.0)
+        self.calls = calls
+
+    def predict(self, images):
+        self.calls -= 1
+        if self.calls < 0:
+            raise RuntimeError("the model broke")
+        return super().predict(images)
+
+
+def test_eval_json_keeps_the_runs_finished_before_a_late_error(tmp_path):
+    policy = FailsLater(build_tiny_model(seed=0), calls=30 + 5)  # 2 s of run 1, then 5 steps
+    config = EvalConfig(tracks=("lake", "gen:3"), speeds_mph=(15.0,), laps=1, scenery=False,
+                        max_seconds=2.0, batch=1)
+    with pytest.raises(RuntimeError, match="the model broke"):
+        evaluate(policy, config, tmp_path, progress=False)
+    saved = json.loads((tmp_path / "eval.json").read_text())
+    assert not saved["complete"]
+    (run,) = saved["runs"]
+    assert run["track"] == "lake" and run["elapsed_s"] == pytest.approx(2.0)
+    assert saved["totals"]["all"]["runs"] == 1
+    assert (tmp_path / run["map_png"]).is_file()

@@ -104,3 +104,14 @@ def test_config_is_validated():
         SimConfig(control_hz=15, physics_hz=100)
     with pytest.raises(ValueError, match="unknown camera"):
         SimConfig(cameras=("roof",))
+
+
+def test_step_before_reset_is_a_clear_error():
+    with Simulator("lake", STATE_ONLY) as sim:
+        with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+            sim.step(Controls())
+        with pytest.raises(RuntimeError, match="before reset"):
+            sim.intervene(10.0)
+        sim.reset()
+        obs, info = sim.step(Controls(throttle=1.0))
+        assert obs.time_s == pytest.approx(1 / 15) and info["events"] == []

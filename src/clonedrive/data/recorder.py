@@ -39,9 +39,12 @@ ordered, and ``config.json`` gains a session. Use a new folder for a separate da
 written; a second recorder started meanwhile is refused with a message naming the first, and the
 lock a killed recorder leaves behind is recognised as stale and taken over.
 
-Recording stops after ``laps`` laps in the driving direction (or ``seconds`` of simulated
+The driving loop is the episode runner's (:mod:`clonedrive.episode`), with the expert as the
+driver: recording stops after ``laps`` laps in the driving direction (or ``seconds`` of simulated
 driving, if given, whichever comes first), or earlier (with ``stopped="off_road"``) once the
-expert has left the road ``max_off_road_events`` times.
+expert has left the road ``max_off_road_events`` times, or at the runner's time limit. An
+off-road event is counted but not intervened: the expert steers back by itself, and those
+recovery rows are recorded with its clean labels.
 """
 
 from __future__ import annotations
@@ -71,6 +74,9 @@ from clonedrive.data.driving_log import (
 from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.speed_labels import SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+from clonedrive.episode.drivers import ExpertCar
+from clonedrive.episode.rules import EpisodeRules, Stop
+from clonedrive.episode.runner import Episode, PerCar, Runner, Step
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.udacity_spec import JPEG_QUALITY
 
@@ -125,6 +131,15 @@ class RecordConfig:
             raise ValueError("fsync_every_rows must be at least 1")
         if self.start_time is not None:
             datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
+        self.expert_config()  # the expert's own checks (offset fraction, ...)
+        self.episode_rules()
+
+    def episode_rules(self) -> EpisodeRules:
+        """The runner's rules for this recording: the laps, the cap on seconds, the off-road
+        limit; off-road events are counted, not intervened (the expert recovers)."""
+        return EpisodeRules(laps=self.laps, set_speed_mph=self.speed_mph, off_road="continue",
+                            max_off_road_events=self.max_off_road_events,
+                            max_seconds=self.seconds)
 
     def expert_config(self) -> ExpertConfig:
         options = {}
@@ -192,52 +207,50 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
     steering: list[float] = []
     skipped = 0
     first_name = last_name = None
-    stopped = "laps"
-    # Enough time for every lap at 2 m/s, so a stuck car cannot record forever.
-    time_limit_s = 60.0 + config.laps * track.length_m / 2.0
     setup_start = time.perf_counter()
     with Simulator(track, sim_config) as sim, \
             RowSink(out, start, header=config.header, relative_paths=config.relative_paths,
                     jpeg_quality=config.jpeg_quality,
                     fsync_every_rows=config.fsync_every_rows) as sink:
-        obs, _ = sim.reset(seed=config.seed, options={"reverse": config.reverse})
-        expert.reset()
+        # The expert recovers by itself: an off-road event is counted, not intervened.
+        episode = Episode(sim, config.episode_rules(), track=config.track, seed=config.seed,
+                          options={"reverse": config.reverse}, trace=False)
+        runner = Runner([episode], PerCar([ExpertCar(expert)]))
+        runner.reset()
         wall_start = time.perf_counter()
         bar = _progress_bar(config.laps, progress)
+
+        def on_step(step: Step) -> None:
+            nonlocal skipped, first_name, last_name
+            decision = step.decision
+            if decision.record:
+                names = sink.submit(step.seen, decision.label, decision.controls,
+                                    target_speed_mph=decision.detail.label_speed_mph)
+                steering.append(decision.label)
+                first_name = first_name or names[0]
+                last_name = names[0]
+            else:
+                skipped += 1
+            if bar is not None:
+                obs = step.observed
+                bar.update(episode.laps_started + obs.lap_progress - bar.n)
+                bar.set_postfix(rows=len(steering), off_road=obs.off_road_events, refresh=False)
+
         try:
-            while sim.laps_started < config.laps:
-                action = expert.act(obs)
-                if action.record:
-                    names = sink.submit(obs, action.label_steering, action.controls_applied,
-                                        target_speed_mph=action.label_speed_mph)
-                    steering.append(action.label_steering)
-                    first_name = first_name or names[0]
-                    last_name = names[0]
-                else:
-                    skipped += 1
-                obs, _ = sim.step(action.controls_applied)
-                if bar is not None:
-                    bar.update(sim.laps_started + obs.lap_progress - bar.n)
-                    bar.set_postfix(rows=len(steering), off_road=obs.off_road_events,
-                                    refresh=False)
-                if obs.off_road_events >= config.max_off_road_events:
-                    stopped = "off_road"
-                    break
-                if config.seconds is not None and obs.time_s >= config.seconds - 1e-9:
-                    stopped = "seconds"
-                    break
-                if obs.time_s >= time_limit_s:
-                    stopped = "time_limit"
-                    break
+            runner.run(on_step)
         except KeyboardInterrupt:
-            stopped = "interrupted"
+            episode.stop(Stop.INTERRUPTED)
         finally:
             if bar is not None:
                 bar.close()
         sink.close()
         rows = sink.rows_written
+        obs = episode.observation
+        stopped = str(episode.stopped)
+        laps_started = episode.laps_started
     wall = time.perf_counter() - wall_start
     setup = wall_start - setup_start
+    time_limit_s = episode.time_limit_s
 
     session["rows"] = rows
     write_session_config(out, config, track, __version__, session)
@@ -257,7 +270,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
         rows=rows,
         total_rows=existing_rows + rows,
         off_road_events=obs.off_road_events,
-        laps=min(sim.laps_started, config.laps),
+        laps=min(laps_started, config.laps),
         clean_laps=obs.laps,
         sim_seconds=obs.time_s,
         wall_seconds=wall,

@@ -1,29 +1,46 @@
 """Closed-loop evaluation: a network drives the simulator, headless and in-process (no socket).
 
-Several runs (track x speed) are driven in lock-step so that their center frames go through the
-network as one batch per control step: single-frame Keras calls dominate otherwise. Each run has
-its own simulator and its own PI speed controller; steering comes from the shared network.
+Several runs (track x speed) are driven in lock-step by the episode runner
+(:mod:`clonedrive.episode`) so that their center frames go through the network as one batch per
+control step: single-frame Keras calls dominate otherwise. Each run has its own simulator and its
+own PI speed controller; steering comes from the shared network
+(:class:`~clonedrive.episode.drivers.NetworkDriver`).
 
-On an off-road event the frame the network saw is saved, and the car is put back on the
-centreline heading along the road at the set speed (an intervention, DESIGN.md); driving goes on
-until the target number of laps has been driven or the time limit passes.
+The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event the frame the
+network saw is saved, and the car is put back on the centreline heading along the road at the set
+speed (an intervention); a run stops when its laps have been driven or its time limit passes.
+
+Output file names (maps, videos, off-road frames) are made from the track's own name and the
+speed by :func:`clonedrive.paths.safe_stem`, never from the path a track was given by. eval.json
+is rewritten (atomically) as each run finishes, so an error late in an evaluation loses none of
+the runs that finished before it; ``"complete"`` says whether every run is in.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from clonedrive.config import save_config, write_json_atomic
-from clonedrive.evaluate.metrics import RunTrace
+from clonedrive.episode.rules import TIME_LIMIT_FACTOR, EpisodeRules
+from clonedrive.episode.runner import Episode, Runner, Step
+from clonedrive.paths import safe_stem
 from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 #: Generated tracks used as unseen tracks start at this seed; recordings never use them.
 UNSEEN_SEED_BASE = 1000
+#: The car's top speed [mph]: set speeds above it cannot be held.
+MAX_SET_SPEED_MPH = 30.0
+
+
+def _check_speed(name: str, value: float) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
+            or not 0.0 < value <= MAX_SET_SPEED_MPH:
+        raise ValueError(f"{name} must be a speed in (0, {MAX_SET_SPEED_MPH:g}] mph, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -40,8 +57,30 @@ class EvalConfig:
     slow_in_curves: bool = False  #: target speed falls as the predicted steering grows
     scenery: bool = True
     batch: int = 8  #: runs driven in lock-step (their frames batched through the network)
-    time_limit_factor: float = 2.5  #: stop after this x the time the laps take at set speed
+    time_limit_factor: float = TIME_LIMIT_FACTOR  #: stop after this x the laps' time at set speed
     max_seconds: float | None = None  #: cap on simulated time per run (quick checks)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.tracks, str) or not all(isinstance(t, str) and t for t in self.tracks):
+            raise ValueError(f"tracks must be a tuple of track names, got {self.tracks!r}")
+        if not self.speeds_mph:
+            raise ValueError("give at least one set speed")
+        for speed in self.speeds_mph:
+            _check_speed("each set speed", speed)
+        if self.unseen_speed_mph is not None:
+            _check_speed("unseen_speed_mph", self.unseen_speed_mph)
+        for name in ("laps", "batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.unseen < 0:
+            raise ValueError(f"unseen must be >= 0, got {self.unseen}")
+        if self.unseen_laps is not None and self.unseen_laps < 1:
+            raise ValueError(f"unseen_laps must be at least 1, got {self.unseen_laps}")
+        if not self.tracks and not self.unseen:
+            raise ValueError("nothing to evaluate: give at least one track (or --unseen N)")
+        # The episode rules check the time limit and the cap on seconds.
+        EpisodeRules(laps=self.laps, set_speed_mph=self.speeds_mph[0],
+                     max_seconds=self.max_seconds, time_limit_factor=self.time_limit_factor)
 
 
 @dataclass(frozen=True)
@@ -62,22 +101,26 @@ def run_specs(config: EvalConfig) -> list[RunSpec]:
 
 
 @dataclass
-class _Episode:
+class _Run:
+    """One evaluation run: its spec, its episode and what it writes."""
+
+    index: int  #: position in run_specs (eval.json keeps that order)
     spec: RunSpec
-    sim: object
-    controller: object
-    trace: RunTrace
-    name: str
-    time_limit_s: float
+    episode: Episode
+    name: str  #: file-name stem of its outputs
     video: object = None
-    obs: object = None
-    done: bool = False
-    frames_dir: Path | None = None
-    pending_hud: list = field(default_factory=list)
+    result: dict | None = None
 
 
-def _run_name(spec: RunSpec) -> str:
-    return f"{spec.track.replace(':', '_')}_{spec.speed_mph:g}mph"
+def run_name(track_name: str, speed_mph: float, taken: set[str] | None = None) -> str:
+    """The file-name stem of a run's outputs: the track's own name and the speed, made safe by
+    :func:`~clonedrive.paths.safe_stem`; ``-2``, ``-3``... when ``taken`` already holds it."""
+    stem = safe_stem(f"{track_name}_{speed_mph:g}mph")
+    name, number = stem, 1
+    while taken is not None and name in taken:
+        number += 1
+        name = f"{stem}-{number}"
+    return name
 
 
 def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: float, lap: int,
@@ -107,25 +150,15 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
              model_path: str | None = None) -> dict:
     """Drive every run of ``config`` with ``policy`` (a NetworkPolicy) and write the results.
 
-    Writes ``eval.json``, ``config.json``, a map PNG per run, off-road frames and (with
-    ``video``) an mp4 per built-in-track run, under ``out_dir``. Returns the eval.json content.
+    Writes ``config.json``, ``eval.json`` (again after each finished run), a map PNG per run,
+    off-road frames and (with ``video``) an mp4 per built-in-track run, under ``out_dir``.
+    Returns the final eval.json content.
     """
     from clonedrive.progress import progress_bar
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     specs = run_specs(config)
-    if not specs:
-        raise ValueError("nothing to evaluate: give at least one track (or --unseen N)")
-    results: list[dict] = []
-    total_steps = sum(_expected_steps(spec, config) for spec in specs)
-    bar = progress_bar(total=total_steps, unit="step", desc="evaluate", enabled=progress)
-    try:
-        for start in range(0, len(specs), max(1, config.batch)):
-            group = specs[start:start + max(1, config.batch)]
-            results += _drive_group(policy, group, config, out, bar)
-    finally:
-        bar.close()
     speed_head = bool(getattr(policy, "speed_head", False))
     report = {
         "model": model_path,
@@ -136,11 +169,30 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
                             if speed_head else "")
                          + (", target speed reduced with |steering|" if config.slow_in_curves
                             else ""),
-        "runs": results,
-        "totals": _totals(results),
+        "complete": False,
+        "runs": [],
+        "totals": _totals([]),
     }
     save_config(config, out / "config.json")
-    write_json_atomic(out / "eval.json", report)
+    finished: dict[int, dict] = {}
+
+    def publish(run: _Run) -> None:
+        finished[run.index] = run.result
+        report["runs"] = [finished[index] for index in sorted(finished)]
+        report["totals"] = _totals(report["runs"])
+        report["complete"] = len(finished) == len(specs)
+        write_json_atomic(out / "eval.json", report)
+
+    total_steps = sum(_expected_steps(spec, config) for spec in specs)
+    bar = progress_bar(total=total_steps, unit="step", desc="evaluate", enabled=progress)
+    taken: set[str] = set()
+    batch = max(1, config.batch)
+    try:
+        for start in range(0, len(specs), batch):
+            group = list(enumerate(specs[start:start + batch], start=start))
+            _drive_group(policy, group, config, out, taken, bar, publish)
+    finally:
+        bar.close()
     return report
 
 
@@ -154,78 +206,73 @@ def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
     return int(seconds * 15)
 
 
-def _open_episode(spec: RunSpec, policy, config: EvalConfig, out: Path) -> _Episode:
-    from clonedrive.drivers.network import SpeedController
+def _open_run(index: int, spec: RunSpec, config: EvalConfig, out: Path, taken: set[str]
+              ) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery))
-    obs, _ = sim.reset(seed=0)
-    controller = SpeedController(spec.speed_mph, kp=policy.controller.kp, ki=policy.controller.ki)
-    trace = RunTrace(track=spec.track, speed_mph=spec.speed_mph, laps_target=spec.laps,
-                     control_hz=sim.config.control_hz, unseen=spec.unseen)
-    laps_time = spec.laps * sim.track.length_m / (spec.speed_mph * MPH_TO_MPS)
-    name = _run_name(spec)
-    time_limit = config.time_limit_factor * laps_time + 30.0
-    if config.max_seconds is not None:
-        time_limit = min(time_limit, config.max_seconds)
-    episode = _Episode(spec=spec, sim=sim, controller=controller, trace=trace, name=name,
-                       time_limit_s=time_limit, obs=obs)
-    if config.video and not spec.unseen:
-        from clonedrive.evaluate.video import VideoWriter
-
-        episode.video = VideoWriter(out / f"{name}.mp4", fps=sim.config.control_hz)
-    return episode
-
-
-def _drive_group(policy, specs: list[RunSpec], config: EvalConfig, out: Path, bar) -> list[dict]:
-    from clonedrive.sim.simulator import Controls
-
-    episodes = [_open_episode(spec, policy, config, out) for spec in specs]
     try:
-        active = list(episodes)
-        while active:
-            frames = np.stack([ep.obs.images["center"] for ep in active])
-            steering, learned = policy.predict(frames)
-            for index, (episode, steer) in enumerate(zip(active, steering, strict=True)):
-                target = policy.target_speed_mph(
-                    float(steer), set_speed_mph=episode.spec.speed_mph,
-                    learned_speed_mph=None if learned is None else float(learned[index]))
-                episode.controller.set_speed_mph = target
-                throttle = episode.controller.update(episode.obs.speed_mph)
-                _step(episode, Controls(steering=float(steer), throttle=throttle), out)
-            bar.update(len(active))
-            active = [ep for ep in active if not ep.done]
-        return [_finish(ep, out) for ep in episodes]
+        rules = EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph,
+                             max_seconds=config.max_seconds,
+                             time_limit_factor=config.time_limit_factor)
+        episode = Episode(sim, rules, track=spec.track, seed=0)
+        name = run_name(sim.track.name, spec.speed_mph, taken)
+        taken.add(name)
+        run = _Run(index=index, spec=spec, episode=episode, name=name)
+        if config.video and not spec.unseen:
+            from clonedrive.evaluate.video import VideoWriter
+
+            run.video = VideoWriter(out / f"{name}.mp4", fps=sim.config.control_hz)
+    except BaseException:
+        sim.close()
+        raise
+    return run
+
+
+def _drive_group(policy, group: list[tuple[int, RunSpec]], config: EvalConfig, out: Path,
+                 taken: set[str], bar, publish) -> None:
+    from clonedrive.episode.drivers import NetworkDriver
+
+    runs: list[_Run] = []
+    try:
+        for index, spec in group:
+            runs.append(_open_run(index, spec, config, out, taken))
+        runner = Runner([run.episode for run in runs],
+                        NetworkDriver(policy, [run.spec.speed_mph for run in runs]))
+        runner.reset()
+        for run in runs:
+            run.episode.trace.unseen = run.spec.unseen
+
+        def on_step(step: Step) -> None:
+            run = runs[step.car]
+            _record_step(run, step, out)
+            bar.update(1)
+            if step.stopped is not None:
+                run.result = _finish(run, out)
+                publish(run)
+
+        runner.run(on_step)
     finally:
-        for episode in episodes:
-            if episode.video is not None:
-                episode.video.close()
-            episode.sim.close()
+        for run in runs:
+            if run.video is not None:
+                run.video.close()
+            run.episode.sim.close()
 
 
-def _step(episode: _Episode, controls, out: Path) -> None:
-    sim, trace, spec = episode.sim, episode.trace, episode.spec
-    seen = episode.obs.images["center"]
-    obs, info = sim.step(controls)
-    trace.add_step(obs, controls.steering)
-    if episode.video is not None:
-        episode.video.append(hud_frame(
-            seen, steering=controls.steering, speed_mph=obs.speed_mph, cte_m=obs.cte_m,
-            lap=sim.laps_started, laps=spec.laps, interventions=len(trace.off_road)))
-    for event in info["events"]:
-        frame_png = _save_frame(obs.images["center"], out / "off_road" /
-                                f"{episode.name}_{len(trace.off_road) + 1:03d}.png")
-        trace.add_off_road(event, frame_png=str(frame_png.relative_to(out)))
-        obs = sim.intervene(spec.speed_mph)
-        episode.controller.reset()
-    trace.laps_completed = obs.laps
-    trace.distance_m = obs.distance_m
-    episode.obs = obs
-    if sim.laps_started >= spec.laps:
-        episode.done = True
-    elif obs.time_s >= episode.time_limit_s:
-        episode.done = True
-        trace.timed_out = True
+def _record_step(run: _Run, step: Step, out: Path) -> None:
+    """A run's outputs for one step: the video frame, the frames of off-road events."""
+    trace = run.episode.trace
+    earlier = len(trace.off_road) - len(step.events)  # interventions before this step
+    if run.video is not None:
+        observed = step.observed
+        run.video.append(hud_frame(
+            step.seen.images["center"], steering=step.decision.controls.steering,
+            speed_mph=observed.speed_mph, cte_m=observed.cte_m,
+            lap=run.episode.laps_started, laps=run.spec.laps, interventions=earlier))
+    for number, record in enumerate(trace.off_road[earlier:], start=earlier + 1):
+        frame_png = _save_frame(step.observed.images["center"],
+                                out / "off_road" / f"{run.name}_{number:03d}.png")
+        record.frame_png = str(frame_png.relative_to(out))
 
 
 def _save_frame(image: np.ndarray, path: Path) -> Path:
@@ -236,21 +283,23 @@ def _save_frame(image: np.ndarray, path: Path) -> Path:
     return path
 
 
-def _finish(episode: _Episode, out: Path) -> dict:
+def _finish(run: _Run, out: Path) -> dict:
     from clonedrive.evaluate.maps import plot_track_map
 
-    trace = episode.trace
+    if run.video is not None:
+        run.video.close()  # the mp4 is whole before eval.json names it
+    trace = run.episode.trace
     summary = trace.summary()
     off_xy = np.array([(e.x_m, e.y_m) for e in trace.off_road]).reshape(-1, 2)
     map_path = plot_track_map(
-        episode.sim.track, out / f"{episode.name}_map.png",
+        run.episode.sim.track, out / f"{run.name}_map.png",
         title=(f"{trace.track} at {trace.speed_mph:g} mph: {trace.laps_completed}/"
                f"{trace.laps_target} laps, {len(trace.off_road)} interventions"),
         driven_xy=np.column_stack([trace.x_m, trace.y_m]), abs_cte_m=np.abs(trace.cte_m),
         off_road_xy=off_xy)
     summary["map_png"] = str(map_path.relative_to(out))
-    if episode.video is not None:
-        summary["video"] = f"{episode.name}.mp4"
+    if run.video is not None:
+        summary["video"] = f"{run.name}.mp4"
     return summary
 
 

@@ -4,7 +4,9 @@ training mode, without the window.
 :class:`DrivingSession` takes input events -- keys pressed and released (Panda3D button names:
 ``arrow_left``, ``a``, ``escape``...), the mouse pointer's horizontal position in [-1, 1], gamepad
 axes -- and steps a :class:`~clonedrive.sim.simulator.Simulator` one control period (1/15 s of
-simulated time) per :meth:`DrivingSession.step`. The Panda3D window
+simulated time) per :meth:`DrivingSession.step`, through the episode runner
+(:mod:`clonedrive.episode`) with the session as its driver (:data:`MANUAL_RULES`: off-road events
+are counted, not intervened; Backspace is the runner's intervention, at rest). The Panda3D window
 (:mod:`clonedrive.manual.window`) only forwards events and draws what the session exposes, so all of
 this runs, and is tested, without a display.
 
@@ -47,6 +49,7 @@ from dataclasses import dataclass, replace
 from datetime import timedelta
 from pathlib import Path
 
+from clonedrive.episode.rules import EpisodeRules
 from clonedrive.sim.simulator import Controls, SimConfig, SimObservation
 from clonedrive.udacity_spec import JPEG_QUALITY, PORT
 
@@ -70,6 +73,11 @@ MESSAGE_SECONDS = 4.0
 
 HELP_DRIVING = ("W/S: throttle/brake  A/D: steer (or arrows)  M: mouse steering  Space: brake  "
                 "R: record  P: autonomous  Backspace: reset  Esc: menu")
+#: A person drives where they like: an off-road event is counted, not intervened; no lap
+#: target, no time limit. A person holds no set speed, so Backspace (the runner's intervention)
+#: puts the car back on the centreline at rest.
+MANUAL_RULES = EpisodeRules(laps=None, set_speed_mph=0.0, off_road="continue")
+
 HELP_MENU = ("Up/Down: track  Left/Right: direction  G: another generated track  "
              "Enter: drive  Esc: quit")
 
@@ -181,6 +189,8 @@ class DrivingSession:
         self.generated_seed = self.config.generated_seed
         self.steering_source = KEYBOARD
         self.sim = None
+        self._episode = None
+        self._runner = None
         self.track_name = ""
         self.observation: SimObservation | None = None
         self.controls = Controls()  #: the controls applied in the latest step
@@ -255,8 +265,8 @@ class DrivingSession:
                 self.start_autonomous()
         elif key == "m":
             self.toggle_mouse_steering()
-        elif key == "backspace" and self.sim is not None:
-            self.observation = self.sim.intervene(0.0)
+        elif key == "backspace" and self._episode is not None:
+            self.observation = self._episode.intervene()
             self._key_steering = self._key_throttle = 0.0
             self._say("back on the centreline")
 
@@ -315,6 +325,7 @@ class DrivingSession:
         self._say(f"loading {track}{direction}...")
 
     def _open_pending(self) -> None:
+        from clonedrive.episode.runner import Episode, PerCar, Runner
         from clonedrive.sim.simulator import Simulator
         from clonedrive.world.catalog import load_track
         from clonedrive.world.track import TrackError
@@ -327,12 +338,15 @@ class DrivingSession:
             self._say(f"cannot load track {track_name}: {error}", forever=True)
             return
         self.sim = Simulator(track, self.sim_config)
+        self._episode = Episode(self.sim, MANUAL_RULES, track=track_name, seed=self.config.seed,
+                                options={"reverse": reverse}, trace=False)
+        self._runner = Runner([self._episode], PerCar([_SessionDriver(self)]))
         try:
-            self.observation, _ = self.sim.reset(seed=self.config.seed,
-                                                 options={"reverse": reverse})
+            (self.observation,) = self._runner.reset()
         except BaseException:
             self.sim.close()
             self.sim = None
+            self._episode = self._runner = None
             raise
         self.track_name = track_name
         self.reverse = reverse
@@ -350,6 +364,7 @@ class DrivingSession:
         if self.sim is not None:
             self.sim.close()
             self.sim = None
+        self._episode = self._runner = None
         self.observation = None
         self.mode = MENU
 
@@ -476,27 +491,32 @@ class DrivingSession:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> SimObservation | None:
-        """One control period: read the input, let the driver (human or server) decide, record
-        the step if recording, advance the simulator. Opens a chosen track first. Returns the
-        new observation (None in the menu)."""
+        """One control period of the episode runner: the driver (human or server) decides
+        (:meth:`decide`), the simulator advances, the step is recorded if recording. Opens a
+        chosen track first. Returns the new observation (None in the menu)."""
         if self._pending is not None:
             self._open_pending()
             return self.observation
-        if self.sim is None:
+        if self._runner is None:
             return None
-        dt_s = 1.0 / self.sim.config.control_hz
-        human = self._human_controls(dt_s)
-        controls = human
-        if self.mode == AUTONOMOUS:
-            controls = self._server_controls(human)
-        obs = self.observation
+        (step,) = self._runner.step()
+        controls = step.decision.controls
         if self._sink is not None:
-            self._record(obs, controls)
+            self._record(step.seen, controls)
         self.controls = controls
-        self.observation, _ = self.sim.step(controls)
+        self.observation = self._episode.observation
         if self.observation.time_s >= self._message_until_s:
             self.message = ""
         return self.observation
+
+    def decide(self) -> Controls:
+        """This step's controls: the person's input, or in autonomous mode the drive server's
+        command unless a person takes over."""
+        dt_s = 1.0 / self.sim.config.control_hz
+        human = self._human_controls(dt_s)
+        if self.mode == AUTONOMOUS:
+            return self._server_controls(human)
+        return human
 
     def _human_active(self) -> bool:
         zone = self.config.gamepad_dead_zone
@@ -601,6 +621,23 @@ class DrivingSession:
         if self.message:
             lines += ["", self.message]
         return lines
+
+
+class _SessionDriver:
+    """The session as the episode runner's driver of its one car: a person (or, in autonomous
+    mode, the drive server the session talks to) decides from the input events it received."""
+
+    def __init__(self, session: DrivingSession) -> None:
+        self.session = session
+
+    def reset(self) -> None:
+        """The input state stays as it is: the person's hands are where they are."""
+
+    def act(self, obs: SimObservation) -> Controls:
+        return self.session.decide()
+
+    def intervened(self, obs: SimObservation) -> None:
+        """Nothing to forget."""
 
 
 def _recorded(controls: Controls, speed_mph: float) -> Controls:

@@ -14,11 +14,12 @@ driving direction with no off-road event.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from clonedrive.sim.conditions import Conditions
+from clonedrive.sim.laps import LapCounter, OffRoadEvent
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track, wrap_angle
@@ -63,18 +64,6 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
-class OffRoadEvent:
-    """A tyre left the road."""
-
-    time_s: float
-    s_m: float  #: arc length in the driving direction
-    x_m: float
-    y_m: float
-    cte_m: float
-    lap: int  #: index of the lap being driven (0 = first)
-
-
-@dataclass(frozen=True)
 class SimObservation:
     """Everything measured after a step (see contracts: images are uint8 RGB H x W x 3)."""
 
@@ -110,6 +99,20 @@ class SimObservation:
         )
 
 
+@dataclass(frozen=True)
+class _Pose:
+    """Where the car sits on the track after a step (from one projection of the car's centre
+    and its four tyre contact points)."""
+
+    track_s_m: float  #: arc length of the car's centre on the track (the track's direction)
+    z_m: float
+    pitch_rad: float
+    roll_rad: float
+    cte_m: float  #: the track's sign convention; the observation flips it when reversed
+    tyres_on_road: tuple[bool, bool, bool, bool]
+    relative_yaw_rad: float  #: the car's yaw minus the road's heading
+
+
 class Simulator:
     """A car on a track. Use as a context manager, or call :meth:`close`."""
 
@@ -122,16 +125,14 @@ class Simulator:
         self._scene = None
         self._rig = None
         self._state = VehicleState()
-        self._obs: SimObservation | None = None
-        # Episode counters (reset() sets them again).
+        self._obs: SimObservation | None = None  # None until reset()
+        self._laps = LapCounter(self.track.length_m)
         self._steps = 0
         self._time_s = 0.0
         self._distance_m = 0.0
-        self._laps = 0
         self._controls = Controls()
         self._reverse = False
         self._direction = 1.0
-        self.events: list[OffRoadEvent] = []
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> Simulator:
@@ -176,27 +177,53 @@ class Simulator:
             self._open_cameras(seed if seed is not None else 0)
         self._reverse = bool(options.get("reverse", False))
         self._direction = -1.0 if self._reverse else 1.0
-        start_s = float(options.get("s_m", 0.0))
-        self._place(start_s, float(options.get("offset_m", 0.0)),
-                    float(options.get("speed_mph", 0.0)), float(options.get("yaw_offset_rad", 0.0)))
+        self._place(float(options.get("s_m", 0.0)), float(options.get("offset_m", 0.0)),
+                    float(options.get("speed_mph", 0.0)),
+                    float(options.get("yaw_offset_rad", 0.0)))
         self._steps = 0
         self._time_s = 0.0
         self._distance_m = 0.0
-        self._laps = 0
-        self._lap_index = 0
-        self._lap_clean = True
-        self._start_s = start_s
-        self._progress_m = 0.0  # signed distance covered along the driving direction
         self._controls = Controls()
-        self.events = []
-        self._was_off_road = False
-        self._obs = self._observe()
-        self._was_off_road = self._obs.off_road
+        pose = self._pose()
+        self._laps.restart(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
+        self._obs = self._observation(pose, self._render(pose))
         return self._obs, {"events": []}
 
+    def step(self, controls: Controls) -> tuple[SimObservation, dict]:
+        """One control period: clip the controls, integrate the physics, find the car's pose on
+        the track, render the cameras there, count laps and off-road events, observe."""
+        if self._obs is None:
+            raise RuntimeError("Simulator.step() before reset(): call reset() to place the car "
+                               "on the track first")
+        controls = controls.clipped()
+        self._integrate(controls)
+        pose = self._pose()
+        images = self._render(pose)
+        lap = self._count(pose)
+        self._obs = self._observation(pose, images)
+        events = [lap.event] if lap.event is not None else []
+        return self._obs, {"events": events, "lap_completed": lap.lap_completed}
+
+    def intervene(self, speed_mph: float) -> SimObservation:
+        """Put the car back on the centreline where it is, heading along the road, at
+        ``speed_mph``; time, distance and lap progress carry on. (The episode runner,
+        :mod:`clonedrive.episode`, decides when and at what speed: DESIGN.md's intervention.)"""
+        if self._obs is None:
+            raise RuntimeError("Simulator.intervene() before reset(): call reset() first")
+        self._place(self._obs.s_m, 0.0, speed_mph, 0.0)
+        pose = self._pose()
+        self._laps.placed(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
+        self._obs = self._observation(pose, self._render(pose))
+        return self._obs
+
+    # ------------------------------------------------------------------ the steps of a step
     def _track_s(self, s_m: float) -> float:
         """Arc length on the track for arc length ``s_m`` measured in the driving direction."""
         return float(self.track.wrap(self._direction * s_m))
+
+    def _s_dir(self, pose: _Pose) -> float:
+        """The pose's arc length measured in the driving direction."""
+        return float(self.track.wrap(self._direction * pose.track_s_m))
 
     def _place(self, s_m: float, offset_m: float, speed_mph: float, yaw_offset_rad: float) -> None:
         track_s = self._track_s(s_m)
@@ -206,18 +233,8 @@ class Simulator:
                                    yaw_rad=float(wrap_angle(yaw + yaw_offset_rad)),
                                    v_x_mps=speed_mph * MPH_TO_MPS)
 
-    def intervene(self, speed_mph: float) -> SimObservation:
-        """An intervention: put the car back on the centreline where it is, heading along the
-        road, at ``speed_mph``; time, distance and lap progress carry on."""
-        s_dir = self._obs.s_m if self._obs is not None else 0.0
-        self._place(s_dir, 0.0, speed_mph, 0.0)
-        self._obs = self._observe()
-        self._was_off_road = self._obs.off_road
-        return self._obs
-
-    def step(self, controls: Controls) -> tuple[SimObservation, dict]:
-        """One control period: apply controls, integrate physics, measure, render."""
-        controls = controls.clipped()
+    def _integrate(self, controls: Controls) -> None:
+        """Physics sub-steps for one control period; time and distance advance."""
         road = self._road_contact()
         state = self._state
         for _ in range(self._substeps):
@@ -227,13 +244,7 @@ class Simulator:
         self._controls = controls
         self._steps += 1
         self._time_s = self._steps / self.config.control_hz  # exact, no drift from summing
-        previous_s = self._obs.s_m
-        obs = self._observe()
-        info = self._update_progress(previous_s, obs)
-        self._obs = obs = self._with_counters(obs)
-        return obs, info
 
-    # ------------------------------------------------------------------ measurement
     def _road_contact(self) -> RoadContact:
         obs = self._obs
         grade = math.tan(obs.pitch_rad)
@@ -241,76 +252,68 @@ class Simulator:
         return RoadContact(grade=grade, front_on_road=0.5 * (flags[0] + flags[1]),
                            rear_on_road=0.5 * (flags[2] + flags[3]))
 
-    def _observe(self) -> SimObservation:
+    def _pose(self) -> _Pose:
         state = self._state
         points = np.array([(state.x_m, state.y_m), *tyre_positions(state, self.params)])
         proj = self.track.project(points)
         on_road = np.abs(proj.cte_m[1:]) <= proj.half_width_m[1:]
         track_s = float(proj.s_m[0])
         grade = float(self.track.grade(track_s))
-        road_heading = float(self.track.heading_at(track_s))
-        relative = state.yaw_rad - road_heading
-        pitch = math.atan(grade * math.cos(relative))
-        roll = math.atan(grade * math.sin(relative))  # right side lower when the road rises left
+        relative = state.yaw_rad - float(self.track.heading_at(track_s))
+        return _Pose(
+            track_s_m=track_s,
+            z_m=float(proj.z_m[0]),
+            pitch_rad=math.atan(grade * math.cos(relative)),
+            roll_rad=math.atan(grade * math.sin(relative)),  # right lower when the road rises left
+            cte_m=float(proj.cte_m[0]),
+            tyres_on_road=tuple(bool(v) for v in on_road),
+            relative_yaw_rad=relative,
+        )
+
+    def _render(self, pose: _Pose) -> dict:
+        if self._rig is None:
+            return {}
+        state = self._state
+        return self._rig.render(state.x_m, state.y_m, pose.z_m, state.yaw_rad, pose.pitch_rad,
+                                pose.roll_rad)
+
+    def _count(self, pose: _Pose):
+        state = self._state
+        return self._laps.update(s_m=self._s_dir(pose), off_road=not all(pose.tyres_on_road),
+                                 time_s=self._time_s, x_m=state.x_m, y_m=state.y_m,
+                                 cte_m=self._direction * pose.cte_m)
+
+    def _observation(self, pose: _Pose, images: dict) -> SimObservation:
+        state = self._state
         direction = self._direction
-        s_dir = float(self.track.wrap(direction * track_s))
-        curvature = float(self.track.curvature(track_s))
-        images = {}
-        z = float(proj.z_m[0])
-        if self._rig is not None:
-            images = self._rig.render(state.x_m, state.y_m, z, state.yaw_rad, pitch, roll)
-        heading_error = float(wrap_angle(relative + (math.pi if self._reverse else 0.0)))
+        laps = self._laps
         return SimObservation(
             time_s=self._time_s,
             images=images,
             x_m=state.x_m,
             y_m=state.y_m,
-            z_m=z,
+            z_m=pose.z_m,
             yaw_rad=state.yaw_rad,
-            pitch_rad=pitch,
-            roll_rad=roll,
+            pitch_rad=pose.pitch_rad,
+            roll_rad=pose.roll_rad,
             speed_mph=state.v_x_mps / MPH_TO_MPS,
             steering=self._controls.steering,
             throttle=self._controls.throttle,
             brake=self._controls.brake,
-            s_m=s_dir,
-            cte_m=direction * float(proj.cte_m[0]),
-            heading_error_rad=heading_error,
-            tyres_on_road=tuple(bool(v) for v in on_road),
-            off_road=not bool(on_road.all()),
-            laps=self._laps,
+            s_m=self._s_dir(pose),
+            cte_m=direction * pose.cte_m,
+            heading_error_rad=float(wrap_angle(pose.relative_yaw_rad
+                                               + (math.pi if self._reverse else 0.0))),
+            tyres_on_road=pose.tyres_on_road,
+            off_road=not all(pose.tyres_on_road),
+            laps=laps.laps,
             distance_m=self._distance_m,
-            off_road_events=len(self.events),
-            lap_progress=0.0,
-            curvature_per_m=direction * curvature,
+            off_road_events=len(laps.events),
+            lap_progress=laps.lap_progress,
+            curvature_per_m=direction * float(self.track.curvature(pose.track_s_m)),
         )
 
-    def _update_progress(self, previous_s: float, obs: SimObservation) -> dict:
-        length = self.track.length_m
-        delta = (obs.s_m - previous_s + 0.5 * length) % length - 0.5 * length
-        self._progress_m += delta
-        info: dict = {"events": [], "lap_completed": False}
-        if obs.off_road and not self._was_off_road:
-            event = OffRoadEvent(time_s=obs.time_s, s_m=obs.s_m, x_m=obs.x_m, y_m=obs.y_m,
-                                 cte_m=obs.cte_m, lap=self._lap_index)
-            self.events.append(event)
-            info["events"].append(event)
-            self._lap_clean = False
-        self._was_off_road = obs.off_road
-        if self._progress_m >= (self._lap_index + 1) * length:
-            if self._lap_clean:
-                self._laps += 1
-                info["lap_completed"] = True
-            self._lap_index += 1
-            self._lap_clean = not obs.off_road
-        return info
-
-    def _with_counters(self, obs: SimObservation) -> SimObservation:
-        length = self.track.length_m
-        progress = self._progress_m / length - self._lap_index
-        return replace(obs, laps=self._laps, off_road_events=len(self.events),
-                       distance_m=self._distance_m, lap_progress=float(min(max(progress, 0), 1)))
-
+    # ------------------------------------------------------------------ read-only state
     @property
     def observation(self) -> SimObservation:
         if self._obs is None:
@@ -318,6 +321,11 @@ class Simulator:
         return self._obs
 
     @property
+    def events(self) -> list[OffRoadEvent]:
+        """This episode's off-road events, in order."""
+        return list(self._laps.events)
+
+    @property
     def laps_started(self) -> int:
         """Index of the lap being driven (laps attempted so far, counting completed ones)."""
-        return self._lap_index
+        return self._laps.lap_index

@@ -34,7 +34,7 @@ import numpy as np
 
 from clonedrive.sim.simulator import Controls
 from clonedrive.udacity import protocol
-from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT
+from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
 
 logger = logging.getLogger("clonedrive.client")
 
@@ -398,69 +398,90 @@ def _preview(value: object, limit: int = 80) -> str:
 # --------------------------------------------------------------------------- autonomous mode
 
 
+class ServerDriver:
+    """A drive server driving one car of the episode runner, as the Udacity simulator's
+    autonomous mode: each step sends the center camera and the car's applied steering,
+    throttle and speed, and applies the server's ``steer`` reply; a ``manual`` reply keeps the
+    last command. The server cannot be told about interventions: its PI controller carries on.
+    """
+
+    def __init__(self, client: SimulatorClient) -> None:
+        self.client = client
+        self.controls = Controls()  #: the last command received
+
+    def reset(self) -> None:
+        self.controls = Controls()
+
+    def act(self, obs) -> Controls:
+        reply = self.client.controls_for(obs.images["center"], obs.steering, obs.throttle,
+                                         obs.speed_mph)
+        if reply is not None:  # "manual": keep the last command
+            self.controls = reply
+        return self.controls
+
+    def intervened(self, obs) -> None:
+        """Nothing to tell: the Udacity protocol has no message for it."""
+
+
 @dataclass(frozen=True)
 class AutonomousConfig:
     track: str = "lake"
     laps: int = 1
-    #: Simulated-time limit, seconds (default: generous per lap); steps = seconds x 15 Hz.
+    #: The drive server's set speed [mph] as far as our side knows it: an intervention puts the
+    #: car back at this speed, and the time limit follows from it (the episode runner's rules).
+    #: drive.py and ``clonedrive drive`` hold 9 mph unless told otherwise.
+    speed_mph: float = SET_SPEED_MPH
+    #: Cap on simulated time [s] (default: the runner's time limit); steps = seconds x 15 Hz.
     max_seconds: float | None = None
     scenery: bool = True
     seed: int = 0  #: the scene's seed
     client: ClientConfig = field(default_factory=ClientConfig)
 
     def __post_init__(self) -> None:
-        if self.laps < 1:
-            raise ValueError(f"laps must be >= 1, got {self.laps}")
-        if self.max_seconds is not None and not self.max_seconds > 0:
-            raise ValueError(f"max_seconds must be > 0, got {self.max_seconds}")
+        if not isinstance(self.track, str) or not self.track:
+            raise ValueError(f"track must be a track name, got {self.track!r}")
+        if not (math.isfinite(self.speed_mph) and 0.0 < self.speed_mph <= 30.0):
+            raise ValueError(f"speed_mph must be in (0, 30] (the car's top speed), got "
+                             f"{self.speed_mph}")
+        self.episode_rules()  # laps >= 1, max_seconds > 0
+
+    def episode_rules(self):
+        from clonedrive.episode.rules import EpisodeRules
+
+        return EpisodeRules(laps=self.laps, set_speed_mph=self.speed_mph,
+                            max_seconds=self.max_seconds)
 
 
 def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict:
     """Let the drive server steer our car for ``laps`` laps; returns the run's metrics
-    (the figures of ``clonedrive evaluate``) plus the session's counts. Each control step
-    sends the center camera and the car's state, and applies the server's reply for one
-    control period (1/15 s of simulated time). Leaving the road is an intervention: the car is
-    put back on the centreline and the run goes on."""
-    from clonedrive.evaluate.metrics import RunTrace
+    (the figures of ``clonedrive evaluate``, from the same episode runner) plus the session's
+    counts. Each control step sends the center camera and the car's state, and applies the
+    server's reply for one control period (1/15 s of simulated time). Leaving the road is an
+    intervention: the car is put back on the centreline at ``speed_mph`` and the run goes on."""
+    from clonedrive.episode.runner import Episode, Step, drive
     from clonedrive.progress import progress_bar
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim_config = SimConfig(cameras=("center",), scenery=config.scenery)
     with Simulator(config.track, sim_config) as sim, SimulatorClient(config.client) as client:
-        obs, _ = sim.reset(seed=config.seed)
-        hz = sim.config.control_hz
+        episode = Episode(sim, config.episode_rules(), track=config.track, seed=config.seed)
         length_m = sim.track.length_m
-        limit_s = config.max_seconds
-        if limit_s is None:
-            limit_s = config.laps * length_m / 2.0 + 60.0  # 2 m/s average: a stalled car stops
-        max_steps = max(1, math.ceil(limit_s * hz - 1e-6))
-        trace = RunTrace(track=config.track, speed_mph=float("nan"), laps_target=config.laps,
-                         control_hz=hz)
         bar = progress_bar(total=config.laps * round(length_m), unit="m", desc="autonomous",
                            enabled=progress)
-        controls = Controls()
         steps = 0
+
+        def on_step(step: Step) -> None:
+            nonlocal steps
+            steps += 1
+            obs = episode.observation
+            covered_m = min(bar.total, round((episode.laps_started + obs.lap_progress) * length_m))
+            bar.update(max(0, covered_m - bar.n))
+
         try:
-            while sim.laps_started < config.laps and steps < max_steps:
-                reply = client.controls_for(obs.images["center"], obs.steering, obs.throttle,
-                                            obs.speed_mph)
-                if reply is not None:  # "manual": keep the last command
-                    controls = reply
-                obs, info = sim.step(controls)
-                steps += 1
-                trace.add_step(obs, controls.steering)
-                for event in info["events"]:
-                    trace.add_off_road(event)
-                    obs = sim.intervene(max(obs.speed_mph, 5.0))
-                trace.laps_completed = obs.laps
-                trace.distance_m = obs.distance_m
-                covered_m = min(bar.total, round((sim.laps_started + obs.lap_progress) * length_m))
-                bar.update(max(0, covered_m - bar.n))
+            drive(episode, ServerDriver(client), on_step=on_step)
         finally:
             bar.close()
-        trace.timed_out = sim.laps_started < config.laps
-        summary = trace.summary()
-        summary["speed_mph"] = summary["mean_speed_mph"]
+        summary = episode.trace.summary()
         summary["steps"] = steps
         summary["server_replies"] = client.replies
         summary["manual_replies"] = client.stats.manual_replies
@@ -468,5 +489,3 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
         summary["pings_sent"] = client.stats.pings_sent
         summary["server"] = client.url
         return summary
-
-

@@ -1,4 +1,10 @@
-"""Closed-loop driving metrics (definitions in DESIGN.md), computed from a run's trace."""
+"""What an episode measured, step by step, and its figures (definitions in DESIGN.md).
+
+:class:`RunTrace` is filled by the episode runner (:class:`clonedrive.episode.runner.Episode`)
+for every closed loop -- evaluation, the Udacity client, DAgger -- so that each reports the same
+figures computed the same way: laps, interventions, autonomy %, mean and max |CTE|, steering
+smoothness, mean speed, distance, and why the episode stopped.
+"""
 
 from __future__ import annotations
 
@@ -56,7 +62,8 @@ class RunTrace:
     off_road: list[OffRoadRecord] = field(default_factory=list)
     laps_completed: int = 0
     distance_m: float = 0.0
-    timed_out: bool = False
+    timed_out: bool = False  #: stopped by the time limit or the cap on simulated seconds
+    stopped: str | None = None  #: the episode's stop reason (clonedrive.episode.rules.Stop)
 
     def add_step(self, obs, steering: float) -> None:
         """Record one control step: the observation after it and the steering applied."""
@@ -93,6 +100,7 @@ class RunTrace:
             "distance_m": round(self.distance_m, 1),
             "elapsed_s": round(elapsed, 2),
             "timed_out": self.timed_out,
+            "stopped": None if self.stopped is None else str(self.stopped),
             "off_road_events": [
                 {"time_s": round(e.time_s, 2), "s_m": round(e.s_m, 1), "x_m": round(e.x_m, 1),
                  "y_m": round(e.y_m, 1), "cte_m": round(e.cte_m, 2), "lap": e.lap,

@@ -1,0 +1,72 @@
+"""Runner drivers for the drivers of :mod:`clonedrive.drivers`: the expert and the network.
+
+(The other two kinds sit with what they talk to: the remote drive server is
+:class:`clonedrive.udacity.client.ServerDriver`, a person is the manual window's session.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from clonedrive.drivers.expert import ExpertDriver
+from clonedrive.drivers.network import NetworkPolicy, SpeedController
+from clonedrive.episode.runner import Decision
+from clonedrive.sim.simulator import Controls, SimObservation
+
+
+class ExpertCar:
+    """The expert driving one car: applies its (possibly noisy) controls and labels the step
+    with its clean steering; ``record`` is False where its style does not want the sample."""
+
+    def __init__(self, expert: ExpertDriver) -> None:
+        self.expert = expert
+
+    def reset(self) -> None:
+        self.expert.reset()
+
+    def act(self, obs: SimObservation) -> Decision:
+        action = self.expert.act(obs)
+        return Decision(controls=action.controls_applied, steering_label=action.label_steering,
+                        record=action.record, detail=action)
+
+    def intervened(self, obs: SimObservation) -> None:
+        """The expert steers from the state it sees: nothing to forget."""
+
+
+class NetworkDriver:
+    """A :class:`~clonedrive.drivers.network.NetworkPolicy` driving N cars: one batched
+    prediction for all their center frames per step, and a PI speed controller per car holding
+    that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed
+    capped by it, with the policy's ``slow_in_curves`` lower in bends). An intervention resets
+    the car's controller (the car is at its set speed)."""
+
+    def __init__(self, policy: NetworkPolicy, set_speeds_mph: Sequence[float]) -> None:
+        self.policy = policy
+        self.set_speeds_mph = [float(speed) for speed in set_speeds_mph]
+        self.controllers = [self._controller(speed) for speed in self.set_speeds_mph]
+
+    def _controller(self, set_speed_mph: float) -> SpeedController:
+        gains = self.policy.controller
+        return SpeedController(set_speed_mph, kp=gains.kp, ki=gains.ki)
+
+    def reset(self, car: int) -> None:
+        self.controllers[car] = self._controller(self.set_speeds_mph[car])
+
+    def act(self, cars: Sequence[int], observations: Sequence[SimObservation]
+            ) -> list[Decision]:
+        frames = np.stack([obs.images["center"] for obs in observations])
+        steering, learned = self.policy.predict(frames)
+        decisions = []
+        for index, (car, obs, steer) in enumerate(zip(cars, observations, steering, strict=True)):
+            controller = self.controllers[car]
+            controller.set_speed_mph = self.policy.target_speed_mph(
+                float(steer), set_speed_mph=self.set_speeds_mph[car],
+                learned_speed_mph=None if learned is None else float(learned[index]))
+            throttle = controller.update(obs.speed_mph)
+            decisions.append(Decision(controls=Controls(steering=float(steer), throttle=throttle)))
+        return decisions
+
+    def intervened(self, car: int, obs: SimObservation) -> None:
+        self.controllers[car].reset()

@@ -4,7 +4,7 @@
   control step (one event per departure: a car that stays off the road is one event).
 - **lap completed**: the car crosses the start line again having covered the whole track in the
   driving direction with no off-road event. A lap driven with an event is *started* and
-  finished (it counts in :attr:`LapCounter.laps_started`) but not *completed*.
+  finished (it counts in :attr:`LapCounter.lap_index`) but not *completed*.
 
 :class:`LapCounter` holds that state for one episode and knows nothing else: the simulator feeds
 it the car's arc length and whether it is on the road after every step.

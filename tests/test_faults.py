@@ -7,21 +7,28 @@ traceback, nothing written outside ``--out``, and memory bounded whatever the in
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 import os
+import re
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed
 
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
+from clonedrive.udacity import protocol
+from clonedrive.udacity.server_config import IDLE_CLOSE_CODE
 
 #: Address space a probe subprocess may use [bytes]: far below what an unbounded input takes.
 PROBE_MEMORY_LIMIT = 1 << 30
@@ -38,6 +45,8 @@ _PROBE_SCRIPT = """
 import contextlib, io, json, sys
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
+from clonedrive.udacity import protocol
+from clonedrive.udacity.server_config import IDLE_CLOSE_CODE
 results = []
 for argv in json.loads(sys.argv[1]):
     err = io.StringIO()
@@ -305,3 +314,62 @@ def test_record_out_naming_an_existing_file_is_refused(tmp_path, capsys):
     assert_one_clear_line(code, err)
     assert "is an existing file" in err and str(existing) in err
     assert existing.read_text() == "keep me"
+
+
+# --------------------------------------------------------------------------- drive server
+
+def upgrade_status(port: int, *headers: str) -> int:
+    """The HTTP status of a raw WebSocket upgrade to the drive server."""
+    lines = ["GET /socket.io/?EIO=4&transport=websocket HTTP/1.1", f"Host: 127.0.0.1:{port}",
+             "Upgrade: websocket", "Connection: Upgrade",
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==", "Sec-WebSocket-Version: 13",
+             *headers]
+    with socket.create_connection(("127.0.0.1", port), timeout=30) as sock:
+        sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
+        return int(sock.makefile("rb").readline().split()[1])
+
+
+def test_drive_refuses_browser_origins_and_reaps_idle_clients(tiny_model):
+    """The real ``clonedrive drive`` process: a web page's upgrade is refused, a client that
+    only pings holds the one slot until it is closed, then the simulator gets in."""
+    command = [sys.executable, "-m", "clonedrive.cli", "drive", str(tiny_model), "--port", "0",
+               "--max-connections", "1", "--idle-timeout", "1", "--status-every", "0"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path), PYTHONUNBUFFERED="1")
+    process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, env=env)
+    jpeg = sorted((FIXTURES / "stationary" / "IMG").glob("center_*.jpg"))[0].read_bytes()
+
+    async def probes(port: int) -> tuple:
+        url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"
+        origin = await asyncio.to_thread(upgrade_status, port, "Origin: https://evil.example")
+        async with connect(url, compression=None) as idle:  # answers pings, sends no telemetry
+            await idle.recv(), await idle.recv()
+            busy = await asyncio.to_thread(upgrade_status, port)
+            try:
+                while True:
+                    await idle.send("2")
+                    await asyncio.wait_for(idle.recv(), 30)
+                    await asyncio.sleep(0.05)
+            except ConnectionClosed as closed:
+                idle_code = closed.rcvd.code if closed.rcvd else None
+        async with connect(url, compression=None) as simulator:
+            await simulator.recv(), await simulator.recv()
+            await simulator.send(protocol.telemetry_frame(0.0, 0.0, 0.0, jpeg))
+            reply = await asyncio.wait_for(simulator.recv(), 30)
+        return origin, busy, idle_code, reply
+
+    try:
+        port = None
+        for line in process.stderr:
+            found = re.search(r"listening on ws://127\.0\.0\.1:(\d+)/socket\.io/", line)
+            if found:
+                port = int(found[1])
+                break
+        assert port is not None, "the server never said where it listens"
+        origin, busy, idle_code, reply = asyncio.run(probes(port))
+    finally:
+        process.send_signal(signal.SIGINT)
+        _, rest = process.communicate(timeout=60)
+    assert (origin, busy, idle_code) == (403, 503, IDLE_CLOSE_CODE)
+    assert protocol.decode_event(reply)[0] == "steer"
+    assert process.returncode == 0 and "Traceback" not in rest
+    assert "2 refused, 1 closed idle" in rest

@@ -27,15 +27,30 @@ from pathlib import Path
 from clonedrive.config import save_config, write_json_atomic
 from clonedrive.udacity_spec import STEERING_CORRECTION
 
+#: Where ``clonedrive demo`` writes its run by default.
+DEFAULT_RUN_DIR = "runs/demo"
+#: Architectures the demo can train (model.architectures.MODEL_NAMES, fast first).
+DEMO_MODELS = ("fast", "seed", "pilotnet")
+
 
 @dataclass(frozen=True)
 class DemoConfig:
+    """What ``clonedrive demo`` runs (the stages' own configs come from :func:`demo_plan`)."""
+
     quick: bool = False  #: small data, few epochs, one short evaluation (about a minute)
     epochs: int | None = None  #: override the training epochs
     unseen: int | None = None  #: override the number of unseen generated tracks
     model: str = "fast"  #: architecture: fast trains in minutes on 2 CPU cores
     video: bool = True  #: mp4s of the built-in-track runs
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.epochs is not None and (isinstance(self.epochs, bool) or self.epochs < 1):
+            raise ValueError(f"epochs must be at least 1, got {self.epochs}")
+        if self.unseen is not None and (isinstance(self.unseen, bool) or self.unseen < 0):
+            raise ValueError(f"unseen must be >= 0, got {self.unseen}")
+        if self.model not in DEMO_MODELS:
+            raise ValueError(f"model must be one of {', '.join(DEMO_MODELS)}, got {self.model!r}")
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 
 HELP = "check a Udacity-format driving log: usable rows, skipped rows and why, steering histogram"
 DESCRIPTION = (
@@ -23,12 +24,31 @@ BAR_WIDTH = 40
 ROWS_SHOWN = 5
 
 
+@dataclass(frozen=True)
+class CheckConfig:
+    """What ``clonedrive check`` verifies of a log's images."""
+
+    decode: bool = True  #: decode every image (False: only check that the files exist)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.decode, bool):
+            raise ValueError(f"decode must be true or false, got {self.decode!r}")
+
+    @property
+    def verify_images(self) -> str:
+        """The :func:`~clonedrive.data.driving_log.read_driving_log` mode this asks for."""
+        return "decode" if self.decode else "exists"
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    defaults = CheckConfig()
     parser.add_argument("data_dir", metavar="DATA_DIR", help="folder with driving_log.csv and IMG/")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--no-decode",
-        action="store_true",
+        dest="decode",
+        action="store_false",
+        default=defaults.decode,
         help="only check that images exist (faster); by default every image is decoded",
     )
 
@@ -36,10 +56,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from clonedrive.data.driving_log import DrivingLogError, read_driving_log
 
+    config = CheckConfig(decode=args.decode)
     try:
         log = read_driving_log(
             args.data_dir,
-            verify_images="exists" if args.no_decode else "decode",
+            verify_images=config.verify_images,
             progress=not args.json and sys.stderr.isatty(),
         )
     except (FileNotFoundError, DrivingLogError) as error:

@@ -16,29 +16,33 @@ DESCRIPTION = (
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", default="runs/demo", help="run folder")
-    parser.add_argument("--quick", action="store_true",
+    from clonedrive.demo import DEFAULT_RUN_DIR, DEMO_MODELS, DemoConfig
+
+    defaults = DemoConfig()
+    parser.add_argument("--out", default=DEFAULT_RUN_DIR, help="run folder")
+    parser.add_argument("--quick", action="store_true", default=defaults.quick,
                         help="small data, 2 epochs, one short evaluation (exercises every stage)")
-    parser.add_argument("--epochs", type=int, default=None, help="override the training epochs")
-    parser.add_argument("--unseen", type=int, default=None, metavar="N",
+    parser.add_argument("--epochs", type=int, default=defaults.epochs,
+                        help="override the training epochs")
+    parser.add_argument("--unseen", type=int, default=defaults.unseen, metavar="N",
                         help="number of unseen generated tracks to evaluate on (default 10)")
-    parser.add_argument("--model", default="fast", choices=("fast", "seed", "pilotnet"),
+    parser.add_argument("--model", default=defaults.model, choices=DEMO_MODELS,
                         help="network architecture")
-    parser.add_argument("--no-video", action="store_true", help="skip the mp4s")
-    parser.add_argument("--seed", type=int, default=0, help="seeds recording and training")
+    parser.add_argument("--no-video", dest="video", action="store_false", default=defaults.video,
+                        help="skip the mp4s")
+    parser.add_argument("--seed", type=int, default=defaults.seed,
+                        help="seeds recording and training")
 
 
 def run(args) -> int:
     from clonedrive.demo import DemoConfig, run_demo
 
-    if args.epochs is not None and args.epochs < 1:
-        print("error: --epochs must be at least 1", file=sys.stderr)
+    try:
+        config = DemoConfig(quick=args.quick, epochs=args.epochs, unseen=args.unseen,
+                            model=args.model, video=args.video, seed=args.seed)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
-    if args.unseen is not None and args.unseen < 0:
-        print("error: --unseen must be >= 0", file=sys.stderr)
-        return 2
-    config = DemoConfig(quick=args.quick, epochs=args.epochs, unseen=args.unseen,
-                        model=args.model, video=not args.no_video, seed=args.seed)
     summary = run_demo(config, args.out)
     stages = ", ".join(f"{name} {stage['seconds']:.0f} s"
                        for name, stage in summary["stages"].items())

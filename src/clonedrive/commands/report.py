@@ -20,11 +20,14 @@ DESCRIPTION = (
 
 
 def add_arguments(parser) -> None:
+    from clonedrive.report.context import ReportConfig
+
+    defaults = ReportConfig()
     parser.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="the run folder")
     parser.add_argument("--out", type=Path, default=None,
                         help="folder for report.md, report.html and report/ (default: RUN_DIR)")
-    parser.add_argument("--max-failures", type=int, default=12, metavar="N",
-                        help="off-road events shown with their frames (default 12)")
+    parser.add_argument("--max-failures", type=int, default=defaults.max_failures, metavar="N",
+                        help="off-road events shown with their frames")
     parser.add_argument("--json", action="store_true",
                         help="no progress bar; print one JSON object with the written paths")
 
@@ -35,11 +38,12 @@ def run(args) -> int:
     if not args.run_dir.is_dir():
         print(f"error: run folder {args.run_dir} does not exist", file=sys.stderr)
         return 2
-    if args.max_failures < 0:
-        print("error: --max-failures must be >= 0", file=sys.stderr)
+    try:
+        config = ReportConfig(max_failures=args.max_failures)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
-    result = write_report(args.run_dir, args.out, ReportConfig(max_failures=args.max_failures),
-                          progress=not args.json)
+    result = write_report(args.run_dir, args.out, config, progress=not args.json)
     if args.json:
         print(json.dumps({
             "markdown": str(result.markdown_path),

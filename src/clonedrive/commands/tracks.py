@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass
 
 HELP = "list tracks (length, width, elevation, tightest curve) and draw their maps"
 DESCRIPTION = (
@@ -14,53 +15,49 @@ DESCRIPTION = (
 )
 
 
+@dataclass(frozen=True)
+class TracksConfig:
+    """What ``clonedrive tracks`` describes and draws."""
+
+    tracks: tuple[str, ...] = ()  #: names, gen:<seed> or .json paths; () = the built-in tracks
+    out: str = "runs/tracks"  #: folder for the map and camera-strip PNGs
+    images: bool = True  #: draw a map per track (False: figures only)
+    strip: bool = True  #: also render a strip of camera frames per track
+
+    def __post_init__(self) -> None:
+        if isinstance(self.tracks, str):
+            raise ValueError("tracks must be a sequence of track names, not one string")
+        for name in self.tracks:
+            if not isinstance(name, str) or not name.strip():
+                raise ValueError(f"tracks: {name!r} is not a track name")
+        if not str(self.out).strip():
+            raise ValueError("out must name a folder")
+
+
 def add_arguments(parser) -> None:
+    defaults = TracksConfig()
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
                         help="track name, gen:<seed> or path to a .json track (repeatable); "
                              "default: all built-in tracks")
-    parser.add_argument("--out", default="runs/tracks", help="folder for the map and strip PNGs")
-    parser.add_argument("--no-images", action="store_true",
+    parser.add_argument("--out", default=defaults.out, help="folder for the map and strip PNGs")
+    parser.add_argument("--no-images", dest="images", action="store_false",
+                        default=defaults.images,
                         help="only print the figures: no map or camera strip")
-    parser.add_argument("--no-strip", action="store_true",
+    parser.add_argument("--no-strip", dest="strip", action="store_false", default=defaults.strip,
                         help="draw the maps but skip rendering camera strips")
     parser.add_argument("--json", action="store_true", help="print the figures as a JSON list")
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    from clonedrive.paths import inside, prepare_output_folder, safe_stem
-    from clonedrive.world.catalog import builtin_track_names, load_track
     from clonedrive.world.track import TrackError
 
-    names = args.track or builtin_track_names()
-    out = Path(args.out)
-    if not args.no_images:
-        try:
-            prepare_output_folder(out)
-        except ValueError as error:  # a file; a read-only folder is an OSError (one line)
-            print(f"error: {error}", file=sys.stderr)
-            return 2
-    rows = []
-    stems: set[str] = set()
-    for name in names:
-        try:
-            track = load_track(name)
-        except TrackError as error:
-            print(f"error: {error}", file=sys.stderr)
-            return 2
-        row = track.summary()
-        if not args.no_images:
-            from clonedrive.evaluate.maps import plot_track_map
-
-            # The name comes from the track file: one safe component, distinct per track.
-            stem = _unused(safe_stem(track.name, fallback="track"), stems)
-            row["map_png"] = str(plot_track_map(track, inside(out, f"{stem}_map.png")))
-            if not args.no_strip:
-                strip = _write_strip(track, inside(out, f"{stem}_cameras.png"))
-                if strip is not None:
-                    row["cameras_png"] = str(strip)
-        rows.append(row)
+    try:
+        config = TracksConfig(tracks=tuple(args.track or ()), out=args.out, images=args.images,
+                              strip=args.strip)
+        rows = describe_tracks(config)
+    except (TrackError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
@@ -76,6 +73,39 @@ def run(args) -> int:
             if key in row:
                 print(f"wrote {row[key]}")
     return 0
+
+
+def describe_tracks(config: TracksConfig) -> list[dict]:
+    """Each track's figures (:meth:`Track.summary`), with the paths of the map and camera strip
+    written for it (``map_png``, ``cameras_png``). ``TrackError`` for a track that cannot be
+    loaded, ``ValueError`` when ``config.out`` is a file, ``OSError`` when it is read-only
+    (checked before any work)."""
+    from pathlib import Path
+
+    from clonedrive.paths import inside, prepare_output_folder, safe_stem
+    from clonedrive.world.catalog import builtin_track_names, load_track
+
+    names = config.tracks or builtin_track_names()
+    out = Path(config.out)
+    if config.images:
+        prepare_output_folder(out)  # ValueError for a file, OSError for a read-only folder
+    rows = []
+    stems: set[str] = set()
+    for name in names:
+        track = load_track(name)
+        row = track.summary()
+        if config.images:
+            from clonedrive.evaluate.maps import plot_track_map
+
+            # The name comes from the track file: one safe component, distinct per track.
+            stem = _unused(safe_stem(track.name, fallback="track"), stems)
+            row["map_png"] = str(plot_track_map(track, inside(out, f"{stem}_map.png")))
+            if config.strip:
+                strip = _write_strip(track, inside(out, f"{stem}_cameras.png"))
+                if strip is not None:
+                    row["cameras_png"] = str(strip)
+        rows.append(row)
+    return rows
 
 
 def _unused(stem: str, used: set[str]) -> str:

@@ -15,20 +15,26 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from clonedrive.evaluate.video import VideoConfig
+
+    defaults = VideoConfig()
     parser.add_argument("folder", help="folder of .jpg/.png frames")
-    parser.add_argument("--fps", type=float, default=60.0, help="frames per second of the video")
-    parser.add_argument("--out", default=None, help="output file (default: FOLDER.mp4)")
+    parser.add_argument("--fps", type=float, default=defaults.fps,
+                        help="frames per second of the video")
+    parser.add_argument("--out", default=defaults.out, help="output file (default: FOLDER.mp4)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.fps > 0:
-        print(f"error: --fps must be positive, got {args.fps}", file=sys.stderr)
-        return 2
-    from clonedrive.evaluate.video import encode_folder
+    from clonedrive.evaluate.video import VideoConfig, encode_folder
 
     try:
-        summary = encode_folder(args.folder, args.fps, args.out, progress=not args.json)
+        config = VideoConfig(fps=args.fps, out=args.out)
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    try:
+        summary = encode_folder(args.folder, config.fps, config.out, progress=not args.json)
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
@@ -36,11 +42,11 @@ def run(args: argparse.Namespace) -> int:
         result = {
             "video": str(summary.path),
             "frames": summary.frames,
-            "fps": args.fps,
+            "fps": config.fps,
             "skipped": [{"file": name, "reason": reason} for name, reason in summary.skipped],
         }
         print(json.dumps(result))
     else:
-        print(f"wrote {summary.path}: {summary.frames} frames at {args.fps:g} fps", end="")
+        print(f"wrote {summary.path}: {summary.frames} frames at {config.fps:g} fps", end="")
         print(f", {len(summary.skipped)} skipped" if summary.skipped else "")
     return 0

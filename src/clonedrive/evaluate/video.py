@@ -15,6 +15,7 @@ default ``medium`` (4.0 ms for ``ultrafast``), for files within 5 % of the same 
 from __future__ import annotations
 
 import logging
+import math
 import os
 import queue
 import threading
@@ -30,6 +31,8 @@ from clonedrive.udacity_spec import CONTROL_HZ
 logger = logging.getLogger("clonedrive.video")
 
 FRAME_SUFFIXES = (".jpg", ".jpeg", ".png")
+#: Frames per second of a video made from a folder of frames (Udacity's video.py default).
+FOLDER_FPS = 60.0
 #: x264 speed/size trade-off (``ultrafast`` ... ``veryslow``).
 DEFAULT_PRESET = "veryfast"
 #: Frames waiting for the encoder at most; a caller faster than the encoder then waits.
@@ -49,7 +52,7 @@ class VideoWriter:
     removed.
     """
 
-    def __init__(self, path: str | os.PathLike, fps: float = 60.0, *, quality: float = 7.0,
+    def __init__(self, path: str | os.PathLike, fps: float = FOLDER_FPS, *, quality: float = 7.0,
                  preset: str = DEFAULT_PRESET) -> None:
         if not fps > 0:
             raise ValueError(f"fps must be positive, got {fps}")
@@ -221,9 +224,23 @@ def default_video_path(folder: str | os.PathLike) -> Path:
     return folder.with_name(folder.name + ".mp4")
 
 
+@dataclass(frozen=True)
+class VideoConfig:
+    """What ``clonedrive video`` encodes: a folder of frames into an mp4."""
+
+    fps: float = FOLDER_FPS  #: frames per second of the video
+    out: str | None = None  #: the mp4 to write; None: ``FOLDER.mp4`` beside the folder
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps}")
+        if self.out is not None and not str(self.out).strip():
+            raise ValueError("out must name a file (or be left out for FOLDER.mp4)")
+
+
 def encode_folder(
     folder: str | os.PathLike,
-    fps: float = 60.0,
+    fps: float = FOLDER_FPS,
     out: str | os.PathLike | None = None,
     *,
     progress: bool = False,
@@ -269,7 +286,7 @@ def encode_folder(
 
 
 def frames_to_video(
-    folder: str | os.PathLike, fps: float = 60.0, out: str | os.PathLike | None = None
+    folder: str | os.PathLike, fps: float = FOLDER_FPS, out: str | os.PathLike | None = None
 ) -> Path:
     """Encode ``folder``'s frames (sorted by name) as H.264 yuv420p mp4; default ``FOLDER.mp4``."""
     return encode_folder(folder, fps, out).path

@@ -6,6 +6,13 @@
 - Drive server round trip per telemetry message (decode + predict + reply) with the `seed`
   model over a real socket: median and p99.
 
+Ratios measured in the same run (they travel between machines; absolute figures do not):
+
+- ``loop_ratio``: closed-loop steps/s (8 runs in lock-step) / render-only steps/s of the center
+  camera on the same track (scene built, one frame rendered and read back per step, nothing
+  else): everything but rendering is overhead. Target >= 0.8.
+- ``video_ratio``: closed-loop steps/s of one run with ``--video`` / without. Target >= 0.8.
+
 Run: python benchmarks/evaluate.py [MODEL.keras]   (default: an untrained `fast` network; the
 weights do not change the cost, only where the car goes)
 """
@@ -23,19 +30,38 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def closed_loop_steps_per_s(policy, batch: int, seconds: float) -> tuple[float, int]:
+def closed_loop_steps_per_s(policy, batch: int, seconds: float, *,
+                            video: bool = False) -> tuple[float, int]:
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     # `batch` runs of the same track at slightly different set speeds, driven in lock-step.
     speeds = tuple(20.0 + 0.5 * i for i in range(batch))
     config = EvalConfig(tracks=("lake",), speeds_mph=speeds, laps=1, batch=batch,
-                        max_seconds=seconds)
+                        max_seconds=seconds, video=video)
     with tempfile.TemporaryDirectory() as out:
         start = time.perf_counter()
         report = evaluate(policy, config, out, progress=False)
         wall = time.perf_counter() - start
     steps = sum(round(run["elapsed_s"] * 15) for run in report["runs"])
     return steps / wall, steps
+
+
+def render_only_steps_per_s(steps: int, track_name: str = "lake") -> float:
+    """The reference: the center camera alone, built and rendered along the centreline."""
+    from clonedrive.sim.cameras import CameraRig
+    from clonedrive.sim.scene import Scene
+    from clonedrive.world.catalog import load_track
+
+    track = load_track(track_name)
+    step_m = 20.0 * 0.44704 / 15.0
+    start = time.perf_counter()
+    with Scene(track) as scene, CameraRig(scene, cameras=("center",)) as rig:
+        for i in range(steps):
+            s = i * step_m
+            x, y, z = track.point(s)
+            rig.render(float(x), float(y), float(z), float(track.heading_at(s)),
+                       pitch_rad=float(track.grade(s)))
+    return steps / (time.perf_counter() - start)
 
 
 def main() -> None:
@@ -50,9 +76,17 @@ def main() -> None:
     policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))  # warm up
     single, single_steps = closed_loop_steps_per_s(policy, 1, 40.0)
     batched, batched_steps = closed_loop_steps_per_s(policy, 8, 20.0)
+    render_only = render_only_steps_per_s(batched_steps)
+    with_video, _ = closed_loop_steps_per_s(policy, 1, 40.0, video=True)
+    loop_ratio = batched / render_only
+    video_ratio = with_video / single
     print("closed loop, lake, fast model, full scenery (includes scene build and map plots):")
     print(f"  1 run:            {single:7.1f} steps/s ({single_steps} steps)")
+    print(f"  1 run, --video:   {with_video:7.1f} steps/s -> video_ratio {video_ratio:.2f} "
+          "(target >= 0.8)")
     print(f"  8 runs lock-step: {batched:7.1f} steps/s ({batched_steps} steps)")
+    print(f"  render only:      {render_only:7.1f} steps/s (center camera, same track) -> "
+          f"loop_ratio {loop_ratio:.2f} (target >= 0.8)")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -76,7 +110,11 @@ def main() -> None:
           f"p99 {p99:.2f} ms")
     steps = max(single, batched)
     print(f"target >= 150 steps/s: {'met' if steps >= 150 else 'NOT met'} ({steps:.0f})")
-    print(json.dumps({"steps_per_s": round(steps, 1),
+    print(json.dumps({"loop_ratio": round(loop_ratio, 3),
+                      "video_ratio": round(video_ratio, 3),
+                      "render_only_steps_per_s": round(render_only, 1),
+                      "steps_per_s_video": round(with_video, 1),
+                      "steps_per_s": round(steps, 1),
                       "steps_per_s_single": round(single, 1),
                       "steps_per_s_batched8": round(batched, 1),
                       "server_latency_ms_median": round(median, 2),

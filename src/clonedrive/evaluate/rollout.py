@@ -18,6 +18,7 @@ the runs that finished before it; ``"complete"`` says whether every run is in.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -265,8 +266,9 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
     earlier = len(trace.off_road) - len(step.events)  # interventions before this step
     if run.video is not None:
         observed = step.observed
-        run.video.append(hud_frame(
-            step.seen.images["center"], steering=step.decision.controls.steering,
+        # A callable: the HUD is drawn on the video's feeder thread, off the driving loop.
+        run.video.append(functools.partial(
+            hud_frame, step.seen.images["center"], steering=step.decision.controls.steering,
             speed_mph=observed.speed_mph, cte_m=observed.cte_m,
             lap=run.episode.laps_started, laps=run.spec.laps, interventions=earlier))
     for number, record in enumerate(trace.off_road[earlier:], start=earlier + 1):

@@ -24,6 +24,7 @@ VERBS: list[tuple[str, str]] = [
     ("autonomous", "autonomous"),
     ("evaluate", "evaluate"),
     ("saliency", "saliency"),
+    ("bench", "bench"),
     ("video", "video"),
     ("report", "report"),
 ]

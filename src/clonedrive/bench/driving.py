@@ -1,0 +1,133 @@
+"""What a bench worker does: drive one batch of a suite's episodes in lock-step.
+
+:func:`drive_batch` runs in a worker process of :mod:`clonedrive.bench.pool`. A **model batch**
+loads the model once and drives its episodes through the episode runner
+(:mod:`clonedrive.episode`) in lock-step, their frames batched through the network; each car
+has its episode's conditions (sim/conditions.py), its own PI speed controller and, under a
+latency condition, a queue that holds its decisions back that many control steps. An **expert
+batch** drives the reference laps: the expert (state only, no cameras) once per (track, speed
+cap). Both return plain dicts (what bench.json keeps per run), in the batch's order.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+
+from clonedrive.bench.suite import EpisodeSpec
+from clonedrive.episode.rules import EpisodeRules
+from clonedrive.episode.runner import Decision, Episode, PerCar, Runner, Step
+from clonedrive.sim.simulator import Controls, SimConfig, SimObservation, Simulator
+
+#: What a delayed car applies before its first decision arrives: coast straight.
+_NEUTRAL = Decision(controls=Controls(steering=0.0, throttle=0.0))
+
+
+class DelayedDriver:
+    """Wraps a runner :class:`~clonedrive.episode.runner.Driver`: car ``i``'s decisions are
+    applied ``latency_steps[i]`` control steps after they are made (actuation latency). The
+    wrapped driver still decides from the current observation every step."""
+
+    def __init__(self, driver, latency_steps: Sequence[int]) -> None:
+        self.driver = driver
+        self.latency_steps = [int(k) for k in latency_steps]
+        self._queues = [deque([_NEUTRAL] * k) for k in self.latency_steps]
+
+    def reset(self, car: int) -> None:
+        self.driver.reset(car)
+        self._queues[car] = deque([_NEUTRAL] * self.latency_steps[car])
+
+    def act(self, cars: Sequence[int], observations: Sequence[SimObservation]) -> list:
+        decided = self.driver.act(cars, observations)
+        out = []
+        for car, decision in zip(cars, decided, strict=True):
+            queue = self._queues[car]
+            queue.append(decision)
+            out.append(queue.popleft())
+        return out
+
+    def intervened(self, car: int, obs: SimObservation) -> None:
+        self.driver.intervened(car, obs)  # decisions already in flight still arrive
+
+
+def _result(spec: EpisodeSpec, episode: Episode, lap_time_s: float | None) -> dict:
+    summary = episode.trace.summary()
+    for key in ("unseen", "off_road_events"):
+        summary.pop(key, None)
+    summary.update({
+        "key": spec.key, "split": spec.split, "index": spec.index, "family": spec.family,
+        "conditions_seed": spec.seed, "conditions": spec.conditions.to_dict(),
+        "lap_time_s": None if lap_time_s is None else round(lap_time_s, 3),
+        "clean": bool(summary["laps_completed"] >= spec.laps),
+    })
+    return summary
+
+
+def _drive(episodes: list[Episode], driver, specs: Sequence[EpisodeSpec]) -> list[dict]:
+    lap_times: dict[int, float] = {}
+
+    def on_step(step: Step) -> None:
+        if step.lap_completed and step.car not in lap_times:
+            lap_times[step.car] = step.observed.time_s
+
+    Runner(episodes, driver).run(on_step)
+    return [_result(spec, episode, lap_times.get(car))
+            for car, (spec, episode) in enumerate(zip(specs, episodes, strict=True))]
+
+
+def drive_batch(task: dict) -> list[dict]:
+    """Drive one batch: ``{"kind": "model", "model": path, "slow_in_curves": bool,
+    "scenery": bool, "episodes": [EpisodeSpec...]}`` or ``{"kind": "expert", "episodes":
+    [...]}``. Returns one result dict per episode, in order."""
+    specs: list[EpisodeSpec] = list(task["episodes"])
+    rules = {"max_seconds": task.get("max_seconds")}
+    if task["kind"] == "expert":
+        return _drive_expert(specs, rules)
+    return _drive_model(task["model"], specs, rules,
+                        slow_in_curves=bool(task["slow_in_curves"]),
+                        scenery=bool(task.get("scenery", True)))
+
+
+def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> list[Episode]:
+    return [Episode(sim, EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph, **rules),
+                    track=spec.track, seed=0) for sim, spec in zip(sims, specs, strict=True)]
+
+
+def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
+                 slow_in_curves: bool, scenery: bool) -> list[dict]:
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.episode.drivers import NetworkDriver
+
+    policy = load_policy(model_path, slow_in_curves=slow_in_curves)
+    import torch
+
+    torch.set_num_threads(1)  # results must not depend on how many workers share the cores
+    sims = []
+    try:
+        for spec in specs:
+            sims.append(Simulator(spec.track, SimConfig(cameras=("center",), scenery=scenery,
+                                                        conditions=spec.conditions)))
+        episodes = _episodes(sims, specs, rules)
+        driver = NetworkDriver(policy, [spec.speed_mph for spec in specs])
+        latency = [spec.conditions.latency_steps for spec in specs]
+        if any(latency):
+            driver = DelayedDriver(driver, latency)
+        return _drive(episodes, driver, specs)
+    finally:
+        for sim in sims:
+            sim.close()
+
+
+def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
+    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.episode.drivers import ExpertCar
+
+    sims = [Simulator(spec.track, SimConfig(cameras=())) for spec in specs]
+    try:
+        episodes = _episodes(sims, specs, rules)
+        cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
+                for sim, spec in zip(sims, specs, strict=True)]
+        return _drive(episodes, PerCar(cars), specs)
+    finally:
+        for sim in sims:
+            sim.close()

@@ -1,0 +1,160 @@
+"""The leaderboard of a bench run: ``leaderboard.md``, a self-contained ``leaderboard.html`` and
+two plots (success per split per model, lap-time ratio per split per model)."""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+from clonedrive.config import write_text_atomic
+
+
+def _pm(figure: dict, digits: int = 1, scale: float = 1.0) -> str:
+    if not figure or figure.get("mean") is None:
+        return "-"
+    mean = figure["mean"] * scale
+    if figure.get("std") is None:
+        return f"{mean:.{digits}f}"
+    return f"{mean:.{digits}f} ± {figure['std'] * scale:.{digits}f} (n={figure['n']})"
+
+
+def _value(value, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def tables(report: dict) -> tuple[list[str], list[list[str]], list[str], list[list[str]]]:
+    """(method header, method rows, model header, model rows) of the leaderboard."""
+    splits = report.get("split_names", [])
+    method_head = ["method", *[f"{s} success %" for s in splits], "interv./km",
+                   "lap-time ratio", "smoothness ratio"]
+    method_rows = []
+    for label, method in report.get("methods", {}).items():
+        scores = method.get("scores") or {}
+        overall = scores.get("overall", {})
+        method_rows.append([label, *[_pm(scores.get(s, {}).get("success_pct", {}))
+                                     for s in splits],
+                            _pm(overall.get("interventions_per_km", {}), 2),
+                            _pm(overall.get("lap_time_ratio", {}), 3),
+                            _pm(overall.get("smoothness_ratio", {}), 2)])
+    model_head = ["model", "split", "runs", "success %", "interv./km", "autonomy %",
+                  "mean |CTE| m", "lap-time ratio", "smoothness ratio"]
+    model_rows = []
+    for entry, model in report.get("models", {}).items():
+        for split, s in model.get("splits", {}).items():
+            model_rows.append([entry, split, str(s["runs"]), _value(s["success_pct"], 1),
+                               _value(s["interventions_per_km"]), _value(s["autonomy_pct"], 1),
+                               _value(s["mean_abs_cte_m"]), _value(s["lap_time_ratio"], 3),
+                               _value(s["smoothness_ratio"])])
+        if "offline_mse" in model:
+            model_rows.append([entry, "offline MSE", "", _value(model["offline_mse"], 5),
+                               "", "", "", "", ""])
+    return method_head, method_rows, model_head, model_rows
+
+
+def _markdown_table(head: list[str], rows: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return lines
+
+
+def plot(report: dict, out: Path) -> list[Path]:
+    """``bench_success.png`` and ``bench_lap_time.png``: grouped bars, one group per split."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    splits = report.get("split_names", [])
+    models = report.get("models", {})
+    paths = []
+    for figure, name, ylabel in (("success_pct", "bench_success.png", "clean-lap success %"),
+                                 ("lap_time_ratio", "bench_lap_time.png",
+                                  "lap time / expert's (clean laps)")):
+        fig, ax = plt.subplots(figsize=(max(6.0, 1.4 * len(splits) + 2), 4.0))
+        width = 0.8 / max(1, len(models))
+        x = np.arange(len(splits))
+        for i, (entry, model) in enumerate(models.items()):
+            values = [model.get("splits", {}).get(s, {}).get(figure) for s in splits]
+            heights = [np.nan if v is None else v for v in values]
+            bars = ax.bar(x + (i - (len(models) - 1) / 2) * width, heights, width, label=entry)
+            ax.bar_label(bars, labels=["-" if v is None else f"{v:.0f}" if figure == "success_pct"
+                                       else f"{v:.2f}" for v in values], fontsize=7)
+        ax.set_xticks(x, splits, rotation=20, ha="right")
+        ax.set_ylabel(ylabel)
+        if figure == "success_pct":
+            ax.set_ylim(0, 105)
+        else:
+            ax.axhline(1.0, color="grey", lw=0.8, ls="--")
+        ax.set_title(f"suite {report['suite']['id']}: {ylabel}")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = out / name
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def markdown(report: dict, images: list[str]) -> str:
+    suite = report["suite"]
+    method_head, method_rows, model_head, model_rows = tables(report)
+    lines = [f"# Benchmark: suite {suite['id']}", "", suite.get("description", ""), "",
+             f"Speed control: {report['speed_control']}. "
+             f"{'Complete.' if report.get('complete') else 'INCOMPLETE: runs still missing.'}",
+             "", "## Methods (mean ± std over the models of a method)", ""]
+    lines += _markdown_table(method_head, method_rows)
+    lines += ["", "## Models by split", ""]
+    lines += _markdown_table(model_head, model_rows)
+    offline = report.get("offline")
+    if offline:
+        lines += ["", "## Offline against closed loop", "",
+                  f"Offline MSE on {offline['rows']} held-out rows. Correlation over "
+                  f"{offline['vs_success_pct']['n']} models: with success % Pearson "
+                  f"{_value(offline['vs_success_pct']['pearson'])}, Spearman "
+                  f"{_value(offline['vs_success_pct']['spearman'])}; with interventions/km "
+                  f"Pearson {_value(offline['vs_interventions_per_km']['pearson'])}, Spearman "
+                  f"{_value(offline['vs_interventions_per_km']['spearman'])}."]
+    lines += ["", "## Splits", ""]
+    lines += [f"- **{s['name']}**: {s['description']} ({len(s['tracks'])} tracks x "
+              f"{', '.join(f'{v:g}' for v in s['speeds_mph'])} mph x "
+              f"{', '.join(s['conditions'])})" for s in suite["splits"]]
+    lines += [""] + [f"![{name}]({name})" for name in images] + [""]
+    return "\n".join(lines)
+
+
+def _html(report: dict, images: list[Path]) -> str:
+    method_head, method_rows, model_head, model_rows = tables(report)
+
+    def table(head, rows):
+        cells = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>"
+                       for row in rows)
+        return f"<table><tr>{cells}</tr>{body}</table>"
+
+    pictures = "".join(
+        f'<img alt="{html.escape(p.name)}" src="data:image/png;base64,'
+        f'{base64.b64encode(p.read_bytes()).decode()}">' for p in images)
+    suite = report["suite"]
+    return (
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>"
+        f"<title>clonedrive bench {html.escape(suite['id'])}</title><style>"
+        "body{font-family:sans-serif;max-width:1100px;margin:2em auto}"
+        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;"
+        "padding:3px 8px;font-size:13px}img{max-width:100%}</style></head><body>"
+        f"<h1>Benchmark: suite {html.escape(suite['id'])}</h1>"
+        f"<p>{html.escape(suite.get('description', ''))}</p>"
+        f"<p>Speed control: {html.escape(report['speed_control'])}.</p>"
+        "<h2>Methods (mean ± std over the models of a method)</h2>"
+        f"{table(method_head, method_rows)}<h2>Models by split</h2>"
+        f"{table(model_head, model_rows)}{pictures}</body></html>")
+
+
+def write_leaderboard(report: dict, out: str | Path) -> dict:
+    """Write the plots, ``leaderboard.md`` and ``leaderboard.html``; returns their paths."""
+    out = Path(out)
+    images = plot(report, out)
+    md = write_text_atomic(out / "leaderboard.md", markdown(report, [p.name for p in images]))
+    page = write_text_atomic(out / "leaderboard.html", _html(report, images))
+    return {"markdown": md, "html": page, "plots": images}

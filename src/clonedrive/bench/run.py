@@ -1,0 +1,231 @@
+"""``clonedrive bench``: drive models through a suite and write bench.json and a leaderboard.
+
+:func:`bench` cuts the suite's episodes into batches (``batch`` episodes of one model each,
+driven in lock-step by one worker), adds the expert's reference laps (one per track and speed
+cap), runs them all on the worker pool (:mod:`clonedrive.bench.pool`), scores every run against
+its reference (:mod:`clonedrive.bench.scores`) and writes, under ``out``:
+
+- ``bench.json``: the suite (id, splits, conditions), the settings, every run with its scores,
+  per model and split figures, per method mean +- std, offline MSE and its correlation with
+  closed-loop figures; rewritten as the batches finish (``"complete"`` says when all are in);
+- ``leaderboard.md`` and ``leaderboard.html`` (self-contained) with ``bench_success.png`` and
+  ``bench_lap_time.png`` (:mod:`clonedrive.bench.leaderboard`).
+
+Models are given as ``PATH`` or ``LABEL=PATH``; models with the same label are one method
+(for example trained with different seeds) and are reported as mean +- std.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
+from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
+from clonedrive.config import config_to_dict, write_json_atomic
+
+#: bench.json's format version.
+BENCH_FORMAT = 1
+#: Rows of held-out recordings used for the offline MSE, at most (evenly spaced).
+MAX_OFFLINE_ROWS = 3000
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """What ``clonedrive bench`` runs."""
+
+    models: tuple[str, ...]  #: PATH or LABEL=PATH per model
+    suite: str = "v1"  #: a built-in suite name or a suite .toml file
+    splits: tuple[str, ...] = ()  #: only these splits (default: all)
+    workers: int | None = None  #: local worker processes (default: one per CPU core)
+    ray: str | None = None  #: "auto", a Ray cluster address, or "local"
+    batch: int = 4  #: episodes one worker drives in lock-step
+    slow_in_curves: bool = False  #: the network's target speed falls with |steering|
+    scenery: bool = True
+    max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
+    offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
+
+    def __post_init__(self) -> None:
+        if not self.models:
+            raise ValueError("give at least one model")
+        for entry in self.models:
+            _label_and_path(entry)
+        if self.workers is not None and self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
+        if not 1 <= self.batch <= 64:
+            raise ValueError(f"batch must be in [1, 64], got {self.batch}")
+        if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
+                                                 and self.max_seconds > 0):
+            raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")
+
+
+def _label_and_path(entry: str) -> tuple[str, str]:
+    label, sep, path = entry.partition("=")
+    if not sep:
+        path = entry
+        p = Path(entry)
+        label = p.parent.name if p.stem == "model" and p.parent.name else p.stem
+    if not label or not path:
+        raise ValueError(f"model {entry!r}: give PATH or LABEL=PATH")
+    return label, path
+
+
+def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[EpisodeSpec]]:
+    """The pool's tasks: expert reference batches first, then each model's batches; and the
+    reference episodes (one per track and speed cap, driven under the clear look)."""
+    from dataclasses import replace
+
+    from clonedrive.sim.conditions import Conditions
+
+    episodes = suite.episodes(config.splits or None)
+    if not episodes:
+        raise ValueError(f"suite {suite.id}: no split named {', '.join(config.splits)}; "
+                         f"it has {', '.join(suite.split_names())}")
+    references: dict[tuple[str, float], EpisodeSpec] = {}
+    for spec in episodes:
+        if spec.reference_key not in references:
+            references[spec.reference_key] = replace(
+                spec, split="expert", index=len(references), family="clear",
+                conditions=Conditions())
+    refs = list(references.values())
+    common = {"max_seconds": config.max_seconds, "scenery": config.scenery}
+    tasks = [{"kind": "expert", "episodes": refs[i:i + 16], **common}
+             for i in range(0, len(refs), 16)]
+    for model in config.models:
+        label, path = _label_and_path(model)
+        for i in range(0, len(episodes), config.batch):
+            tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
+                          "slow_in_curves": config.slow_in_curves,
+                          "episodes": episodes[i:i + config.batch], **common})
+    return tasks, refs
+
+
+def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) -> dict:
+    """Run the benchmark and write its files; returns bench.json's content."""
+    from clonedrive.bench.leaderboard import write_leaderboard
+    from clonedrive.bench.pool import default_workers, run_tasks
+    from clonedrive.progress import progress_bar
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    suite = load_suite(config.suite)
+    tasks, references = plan_tasks(suite, config)
+    for model in config.models:
+        path = Path(_label_and_path(model)[1])
+        if not path.is_file():
+            raise FileNotFoundError(f"model file not found: {path}")
+    workers = config.workers or default_workers()
+    report = {
+        "format": BENCH_FORMAT,
+        "suite": suite.to_dict(),
+        "settings": {**config_to_dict(config), "workers": None if config.ray else workers},
+        "speed_control": "drive.py's PI (kp 0.1, ki 0.002) at the set speed"
+                         + (", target speed reduced with |steering|" if config.slow_in_curves
+                            else ", no curve slowing (drive.py parity)"),
+        "complete": False,
+    }
+    results: dict[int, list[dict]] = {}
+    episodes = sum(len(task["episodes"]) for task in tasks)
+    bar = progress_bar(total=episodes, unit="episode", desc="bench", enabled=progress)
+
+    def on_done(index: int, result: list[dict]) -> None:
+        results[index] = result
+        bar.update(len(result))
+        report.update(assemble(tasks, results, config, suite))
+        report["complete"] = len(results) == len(tasks)
+        write_json_atomic(out / "bench.json", report)
+
+    try:
+        run_tasks(tasks, workers=workers, ray=config.ray, on_done=on_done)
+    finally:
+        bar.close()
+    if config.offline_data:
+        add_offline(report, config)
+        write_json_atomic(out / "bench.json", report)
+    write_leaderboard(report, out)
+    return report
+
+
+def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchConfig,
+             suite: Suite) -> dict:
+    """bench.json's reference, runs, models and methods from the finished tasks."""
+    split_names = [s for s in suite.split_names() if not config.splits or s in config.splits]
+    reference = {}
+    for index, task in enumerate(tasks):
+        if task["kind"] == "expert" and index in results:
+            for run in results[index]:
+                reference[f"{run['track']}@{run['speed_mph']:g}"] = run
+    models: dict[str, dict] = {}
+    for index, task in enumerate(tasks):
+        if task["kind"] != "model":
+            continue
+        model = models.setdefault(task["entry"], {"label": task["label"], "path": task["model"],
+                                                  "runs": []})
+        for run in results.get(index, []):
+            ref = reference.get(f"{run['track']}@{run['speed_mph']:g}")
+            model["runs"].append({**run, "scores": run_scores(run, ref)})
+    for model in models.values():
+        model["splits"] = {}
+        for split in split_names:
+            runs = [r for r in model["runs"] if r["split"] == split]
+            if runs:
+                model["splits"][split] = split_scores(runs)
+        model["overall"] = split_scores(model["runs"]) if model["runs"] else {}
+    methods: dict[str, dict] = {}
+    for entry, model in models.items():
+        methods.setdefault(model["label"], {"models": []})["models"].append(entry)
+    for method in methods.values():
+        members = [models[e] for e in method["models"]]
+        complete = [m for m in members if set(m["splits"]) == set(split_names)]
+        method["scores"] = method_scores(complete, split_names) if complete else {}
+    return {"reference": reference, "models": models, "methods": methods,
+            "split_names": split_names}
+
+
+def add_offline(report: dict, config: BenchConfig) -> None:
+    """Each model's MSE on held-out recordings, and its correlation with closed-loop figures."""
+    rows = _offline_rows(config.offline_data)
+    for model in report["models"].values():
+        model["offline_mse"] = offline_mse(model["path"], rows)
+    models = list(report["models"].values())
+    mse = [m["offline_mse"] for m in models]
+    report["offline"] = {
+        "data": list(config.offline_data),
+        "rows": len(rows),
+        "vs_success_pct": correlation(mse, [m["overall"].get("success_pct") for m in models]),
+        "vs_interventions_per_km": correlation(
+            mse, [m["overall"].get("interventions_per_km") for m in models]),
+    }
+
+
+def _offline_rows(folders: tuple[str, ...]) -> list:
+    from clonedrive.data.driving_log import read_driving_log
+
+    rows = []
+    for folder in folders:
+        rows += read_driving_log(folder, verify_images="exists").rows
+    if len(rows) > MAX_OFFLINE_ROWS:
+        step = len(rows) / MAX_OFFLINE_ROWS
+        rows = [rows[int(i * step)] for i in range(MAX_OFFLINE_ROWS)]
+    if not rows:
+        raise ValueError(f"no usable rows in {', '.join(folders)}")
+    return rows
+
+
+def offline_mse(model_path: str, rows: list) -> float:
+    """Mean squared error of the model's steering on the center images of ``rows``."""
+    import numpy as np
+
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.images import read_rgb
+
+    policy = load_policy(model_path)
+    errors = []
+    for start in range(0, len(rows), 64):
+        chunk = rows[start:start + 64]
+        frames = np.stack([read_rgb(row.center) for row in chunk])
+        predicted = policy.predict_steering(frames)
+        errors += [(float(p) - row.steering) ** 2 for p, row in zip(predicted, chunk,
+                                                                    strict=True)]
+    return round(float(np.mean(errors)), 6)

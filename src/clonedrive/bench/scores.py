@@ -1,0 +1,113 @@
+"""Benchmark figures (DESIGN.md, "Benchmark figures"): per run, per split, per method.
+
+Per run (one episode of one model), against the expert's reference lap on the same track and
+speed cap: **clean** (every lap without a tyre off the road), **interventions per km**,
+**autonomy %**, **mean |CTE|**, **lap-time ratio** (a clean lap's time / the expert's; lower is
+faster), **smoothness ratio** (mean |steering change| per second / the expert's).
+
+Per split: success % (share of clean runs), interventions per km (all interventions / all km),
+mean autonomy %, mean |CTE|, mean lap-time ratio over the clean runs, mean smoothness ratio.
+
+Per method (models given the same label, e.g. one per training seed): each split figure as
+mean +- standard deviation over its models (sample std, n - 1).
+
+Offline against closed loop: Pearson and Spearman correlation, over models, of the offline
+validation MSE with the overall success % and interventions per km (Codevilla et al. 2018 found
+offline error a poor predictor of driving).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+SPLIT_FIGURES = ("success_pct", "interventions_per_km", "autonomy_pct", "mean_abs_cte_m",
+                 "lap_time_ratio", "smoothness_ratio")
+
+
+def run_scores(run: dict, reference: dict | None) -> dict:
+    """The figures of one run next to its expert reference (None: no reference)."""
+    km = run["distance_m"] / 1000.0
+    scores = {
+        "clean": bool(run["clean"]),
+        "interventions_per_km": round(run["interventions"] / km, 3) if km > 0 else None,
+        "autonomy_pct": run["autonomy_pct"],
+        "mean_abs_cte_m": run["mean_abs_cte_m"],
+        "lap_time_ratio": None,
+        "smoothness_ratio": None,
+    }
+    if reference is not None:
+        if run.get("lap_time_s") and reference.get("lap_time_s"):
+            scores["lap_time_ratio"] = round(run["lap_time_s"] / reference["lap_time_s"], 4)
+        if reference.get("smoothness"):
+            scores["smoothness_ratio"] = round(run["smoothness"] / reference["smoothness"], 4)
+    return scores
+
+
+def _mean(values: Sequence[float | None]) -> float | None:
+    kept = [v for v in values if v is not None]
+    return round(float(np.mean(kept)), 4) if kept else None
+
+
+def split_scores(runs: Sequence[dict]) -> dict:
+    """Figures of a split from its runs (each run: its result with ``scores``)."""
+    km = sum(run["distance_m"] for run in runs) / 1000.0
+    clean = [run for run in runs if run["scores"]["clean"]]
+    return {
+        "runs": len(runs),
+        "clean_runs": len(clean),
+        "success_pct": round(100.0 * len(clean) / len(runs), 2) if runs else None,
+        "interventions_per_km": round(sum(r["interventions"] for r in runs) / km, 3)
+        if km > 0 else None,
+        "autonomy_pct": _mean([r["scores"]["autonomy_pct"] for r in runs]),
+        "mean_abs_cte_m": _mean([r["scores"]["mean_abs_cte_m"] for r in runs]),
+        "lap_time_ratio": _mean([r["scores"]["lap_time_ratio"] for r in clean]),
+        "smoothness_ratio": _mean([r["scores"]["smoothness_ratio"] for r in runs]),
+    }
+
+
+def method_scores(models: Sequence[dict], split_names: Sequence[str]) -> dict:
+    """Per split and figure: mean, std (n - 1; None for one model) and n over ``models`` (each
+    with ``splits`` and ``overall`` as :func:`split_scores` gives them)."""
+    out = {}
+    for split in [*split_names, "overall"]:
+        figures = {}
+        for figure in SPLIT_FIGURES:
+            values = [m["splits"][split][figure] if split != "overall" else m["overall"][figure]
+                      for m in models]
+            values = [v for v in values if v is not None]
+            if not values:
+                figures[figure] = {"mean": None, "std": None, "n": 0}
+                continue
+            std = float(np.std(values, ddof=1)) if len(values) > 1 else None
+            figures[figure] = {"mean": round(float(np.mean(values)), 4),
+                               "std": None if std is None else round(std, 4), "n": len(values)}
+        out[split] = figures
+    return out
+
+
+def _ranks(values: np.ndarray) -> np.ndarray:
+    order = np.argsort(values, kind="stable")
+    ranks = np.empty(len(values))
+    ranks[order] = np.arange(len(values), dtype=float)
+    for value in np.unique(values):  # ties share their mean rank
+        tied = values == value
+        ranks[tied] = ranks[tied].mean()
+    return ranks
+
+
+def correlation(x: Sequence[float], y: Sequence[float]) -> dict:
+    """Pearson and Spearman correlation of paired values (None where undefined: fewer than 3
+    pairs, or a constant series)."""
+    pairs = [(a, b) for a, b in zip(x, y, strict=True) if a is not None and b is not None]
+    out = {"n": len(pairs), "pearson": None, "spearman": None}
+    if len(pairs) < 3:
+        return out
+    a, b = (np.asarray(v, dtype=float) for v in zip(*pairs, strict=True))
+    for name, (u, v) in (("pearson", (a, b)), ("spearman", (_ranks(a), _ranks(b)))):
+        if np.std(u) > 0 and np.std(v) > 0:
+            r = float(np.corrcoef(u, v)[0, 1])
+            out[name] = round(r, 4) if math.isfinite(r) else None
+    return out

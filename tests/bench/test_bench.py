@@ -1,0 +1,105 @@
+"""clonedrive bench: figures per run, split and method; the same results with 1 worker, 2
+workers and Ray; bench.json and the leaderboard written."""
+
+import json
+
+import pytest
+
+from clonedrive.bench.pool import run_tasks
+from clonedrive.bench.run import BenchConfig, bench, plan_tasks
+from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
+from clonedrive.bench.suite import load_suite
+
+SUITE = """
+id = "tiny"
+[[split]]
+name = "a"
+tracks = ["lake"]
+speeds_mph = [20.0]
+conditions = ["clear", "late"]
+seed = 3
+[conditions.clear]
+[conditions.late]
+held_out = true
+latency_steps = 2
+jpeg_quality = [30, 40]
+"""
+
+
+def run(clean, interventions=0, distance_m=500.0, lap_time_s=60.0, smoothness=0.2):
+    return {"clean": clean, "interventions": interventions, "distance_m": distance_m,
+            "autonomy_pct": 100.0 - 10 * interventions, "mean_abs_cte_m": 0.5,
+            "lap_time_s": lap_time_s if clean else None, "smoothness": smoothness}
+
+
+def test_scores_per_run_split_and_method():
+    reference = {"lap_time_s": 50.0, "smoothness": 0.1}
+    a = {**run(True), "scores": run_scores(run(True), reference)}
+    b = {**run(False, 2), "scores": run_scores(run(False, 2), reference)}
+    assert a["scores"]["lap_time_ratio"] == pytest.approx(1.2)
+    assert a["scores"]["smoothness_ratio"] == pytest.approx(2.0)
+    assert b["scores"]["interventions_per_km"] == pytest.approx(4.0)
+    split = split_scores([a, b])
+    assert split["success_pct"] == 50.0 and split["interventions_per_km"] == pytest.approx(2.0)
+    assert split["lap_time_ratio"] == pytest.approx(1.2)  # clean runs only
+    models = [{"splits": {"s": split}, "overall": split},
+              {"splits": {"s": split_scores([a])}, "overall": split_scores([a])}]
+    method = method_scores(models, ["s"])
+    assert method["s"]["success_pct"]["mean"] == 75.0
+    assert method["s"]["success_pct"]["std"] == pytest.approx(35.3553, abs=1e-3)
+    assert correlation([1, 2, 3, 4], [8, 6, 4, 2]) == {"n": 4, "pearson": -1.0,
+                                                        "spearman": -1.0}
+    assert correlation([1, 2], [3, 4])["pearson"] is None
+
+
+@pytest.fixture(scope="module")
+def tiny_models(tmp_path_factory):
+    from clonedrive.drivers.tiny_model import build_tiny_model
+
+    folder = tmp_path_factory.mktemp("models")
+    paths = []
+    for seed in (0, 1):
+        path = folder / f"tiny{seed}.keras"
+        build_tiny_model(seed).save(path)
+        paths.append(str(path))
+    return paths
+
+
+def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_path,
+                                                                          tiny_models):
+    suite_path = tmp_path / "tiny.toml"
+    suite_path.write_text(SUITE, encoding="utf-8")
+    reports = []
+    for workers in (1, 2):
+        config = BenchConfig(models=(f"tiny={tiny_models[0]}",),
+                             suite=str(suite_path), workers=workers, batch=1,
+                             max_seconds=3.0, scenery=False)
+        reports.append(bench(config, tmp_path / f"w{workers}", progress=False))
+    one, two = reports
+    assert json.dumps(one["models"], sort_keys=True) == json.dumps(two["models"], sort_keys=True)
+    assert one["complete"] and set(one["methods"]) == {"tiny"}
+    runs = one["models"][f"tiny={tiny_models[0]}"]["runs"]
+    assert [r["family"] for r in runs] == ["clear", "late"]
+    assert runs[1]["conditions"]["latency_steps"] == 2
+    assert runs[0]["elapsed_s"] == pytest.approx(3.0)
+    assert one["methods"]["tiny"]["scores"]["a"]["success_pct"]["n"] == 1
+    for name in ("bench.json", "leaderboard.md", "leaderboard.html", "bench_success.png",
+                 "bench_lap_time.png"):
+        assert (tmp_path / "w1" / name).is_file()
+    assert "| tiny |" in (tmp_path / "w1" / "leaderboard.md").read_text(encoding="utf-8")
+
+
+def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):
+    ray = pytest.importorskip("ray")
+    suite_path = tmp_path / "tiny.toml"
+    suite_path.write_text(SUITE, encoding="utf-8")
+    config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=1,
+                         max_seconds=3.0, scenery=False)
+    tasks, _ = plan_tasks(load_suite(config.suite), config)
+    local = run_tasks(tasks, workers=2)
+    ray.init(num_cpus=2, include_dashboard=False)
+    try:
+        distributed = run_tasks(tasks, ray="local")
+    finally:
+        ray.shutdown()
+    assert json.dumps(local, sort_keys=True) == json.dumps(distributed, sort_keys=True)

@@ -373,3 +373,21 @@ def test_drive_refuses_browser_origins_and_reaps_idle_clients(tiny_model):
     assert protocol.decode_event(reply)[0] == "steer"
     assert process.returncode == 0 and "Traceback" not in rest
     assert "2 refused, 1 closed idle" in rest
+
+
+# --------------------------------------------------------------------------- bad numbers
+
+@pytest.mark.parametrize("argv", [
+    ["evaluate", "model.keras", "--speed", "nan"],
+    ["evaluate", "model.keras", "--speed=-5"],
+    ["evaluate", "model.keras", "--unseen", "1", "--unseen-speed", "inf"],
+    ["drive", "model.keras", "--speed", "nan"],
+    ["drive", "model.keras", "--idle-timeout", "nan"],
+    ["record", "--out", "never", "--speed", "nan"],
+    ["record", "--out", "never", "--noise", "nan"],
+])
+def test_non_finite_and_negative_speeds_are_refused(tmp_path, capsys, argv):
+    code, _, err = run_cli(capsys, *[str(tmp_path / arg) if arg in ("model.keras", "never")
+                                     else arg for arg in argv])
+    assert_one_clear_line(code, err)
+    assert not any(tmp_path.iterdir())  # refused before anything was written

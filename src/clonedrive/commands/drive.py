@@ -60,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # our own lines say enough
-    if args.speed < 0 or args.speed > 30:
+    if not 0 <= args.speed <= 30:  # also nan
         print(f"error: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
         return 2
     try:

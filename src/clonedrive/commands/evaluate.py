@@ -58,9 +58,14 @@ def run(args) -> int:
     if args.laps < 1:
         print("error: --laps must be at least 1", file=sys.stderr)
         return 2
-    config = EvalConfig(tracks=tuple(tracks), speeds_mph=tuple(args.speed or [15.0]),
-                        laps=args.laps, unseen=args.unseen, unseen_speed_mph=args.unseen_speed,
-                        video=args.video, slow_in_curves=args.slow_in_curves, batch=args.batch)
+    try:
+        config = EvalConfig(tracks=tuple(tracks), speeds_mph=tuple(args.speed or [15.0]),
+                            laps=args.laps, unseen=args.unseen,
+                            unseen_speed_mph=args.unseen_speed, video=args.video,
+                            slow_in_curves=args.slow_in_curves, batch=args.batch)
+    except ValueError as error:  # --speed nan, -5, 31...
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     try:
         policy = load_policy(args.model, slow_in_curves=args.slow_in_curves)
     except (FileNotFoundError, ValueError) as error:

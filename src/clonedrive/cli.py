@@ -25,6 +25,7 @@ VERBS: list[tuple[str, str]] = [
     ("evaluate", "evaluate"),
     ("saliency", "saliency"),
     ("bench", "bench"),
+    ("export", "export"),
     ("video", "video"),
     ("report", "report"),
 ]

@@ -149,7 +149,7 @@ def test_load_errors(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="missing.keras"):
         load_model(tmp_path / "missing.keras")
     (tmp_path / "model.txt").write_text("x")
-    with pytest.raises(ValueError, match=r"\.keras or \.h5"):
+    with pytest.raises(ValueError, match=r"\.keras, \.h5 or \.onnx"):
         load_model(tmp_path / "model.txt")
     (tmp_path / "broken.keras").write_bytes(b"not a zip")
     with pytest.raises(ValueError, match="broken.keras"):

@@ -6,22 +6,24 @@ import argparse
 import logging
 import sys
 
+from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
 from clonedrive.udacity.server_config import DriveServerConfig
 from clonedrive.udacity_spec import SET_SPEED_MPH
 
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"
 DESCRIPTION = (
-    "Load a Keras steering model (.keras, or legacy .h5) and answer the Udacity simulator's "
-    "telemetry on ws://HOST:PORT/socket.io/ with steering from the model and throttle from a PI "
-    "speed controller, as Udacity's drive.py does. Start the simulator in Autonomous Mode. "
-    "With IMAGE_FOLDER, every received frame is saved there as YYYY_MM_DD_HH_MM_SS_mmm.jpg (UTC); "
-    "turn them into a video with `clonedrive video IMAGE_FOLDER`. Binds 127.0.0.1 unless --host "
-    "says otherwise."
+    "Load a steering model (.keras, .h5 including students' Keras 2 files, or .onnx) and "
+    "answer the Udacity simulator's telemetry on ws://HOST:PORT/socket.io/ with steering from "
+    "the model and throttle from a PI speed controller, as Udacity's drive.py does. Start the "
+    "simulator in Autonomous Mode. With IMAGE_FOLDER, every received frame is saved there as "
+    "YYYY_MM_DD_HH_MM_SS_mmm.jpg (UTC); turn them into a video with `clonedrive video "
+    "IMAGE_FOLDER`. Replies use the decimal separator the simulator's telemetry uses (comma "
+    "locales). Binds 127.0.0.1 unless --host says otherwise."
 )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("model", help="Keras model file (.keras or .h5)")
+    parser.add_argument("model", help="model file (.keras, .h5 or .onnx)")
     parser.add_argument(
         "image_folder", nargs="?", default=None, help="save received frames in this folder"
     )
@@ -55,6 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--image-folder-max-mb", type=float,
                         default=defaults.image_folder_max_mb, metavar="MB",
                         help="stop saving frames once IMAGE_FOLDER holds this much")
+    add_model_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,12 +76,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
 
-    from clonedrive.drivers.network import load_policy
     from clonedrive.udacity.server import DriveServer
 
     try:
-        policy = load_policy(
-            args.model, set_speed_mph=args.speed, slow_in_curves=args.slow_in_curves
+        policy = load_policy_from_args(
+            args, args.model, set_speed_mph=args.speed, slow_in_curves=args.slow_in_curves
         )
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
@@ -99,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"served {stats.connections} connection(s): {stats.steer} steer, {stats.manual} manual, "
         f"{stats.safe} safe replies, {stats.bad_total} bad message(s), "
-        f"{sum(stats.refused.values())} refused, {stats.idle_closed} closed idle",
+        f"{sum(stats.refused.values())} refused, {stats.idle_closed} closed idle, "
+        f"{stats.nan_predictions} NaN prediction(s)",
         file=sys.stderr,
     )
     return 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
+
 HELP = "drive a model in closed loop (headless) and measure laps, interventions, CTE"
 DESCRIPTION = (
     "Drive a trained model around tracks in the simulator, in-process and headless, and measure "
@@ -16,7 +18,7 @@ DESCRIPTION = (
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("model", help="trained model (.keras or .h5)")
+    parser.add_argument("model", help="trained model (.keras, .h5 or .onnx)")
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
                         help="track to drive (repeatable): lake, mountain, gen:<seed>, or a .json "
                              "file; default lake (none if only --unseen is given)")
@@ -37,12 +39,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None,
                         help="output folder (default: eval/ beside the model)")
     parser.add_argument("--json", action="store_true", help="print eval.json's content")
+    add_model_arguments(parser)
 
 
 def run(args) -> int:
     from pathlib import Path
 
-    from clonedrive.drivers.network import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
     from clonedrive.paths import prepare_output_folder
     from clonedrive.world.catalog import load_track
@@ -67,7 +69,7 @@ def run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     try:
-        policy = load_policy(args.model, slow_in_curves=args.slow_in_curves)
+        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -9,12 +9,19 @@ after the first, ``steering``) predicting the expert's target speed for the scen
 :data:`TARGET_SPEED_SCALE_MPH` (1.0 = the car's top speed). :class:`NetworkPolicy` then aims
 for the learned speed, capped by the set speed; a one-output model drives at the set speed (or
 with ``slow_in_curves``, the hand-made rule).
+
+Outputs are checked when a model is loaded (:func:`check_model`): one output, the steering,
+shape ``(N, 1)``, or the speed head's two; any other count, name or shape is refused at load
+with the names found, instead of failing on every frame.
+
+Model files (``.keras``, ``.h5`` including students' Keras 1/2 files, ``.onnx``) are read by
+:mod:`clonedrive.drivers.model_file`; :func:`load_model` and :func:`load_policy` here are the
+entry points every command uses (``trust``: ``--trust-model``; ``runtime``: ``--runtime``).
 """
 
 from __future__ import annotations
 
 import math
-import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -117,6 +124,9 @@ class NetworkPolicy:
         self.min_speed_fraction = float(min_speed_fraction)
         self.batch_size = int(batch_size)
         self.controller = SpeedController(set_speed_mph, kp=kp, ki=ki)
+        #: Frames whose steering prediction was NaN or infinite (driven straight / at full
+        #: lock instead), over this policy's life; the drive server logs it.
+        self.nan_predictions = 0
 
     def reset(self) -> None:
         self.controller.reset()
@@ -187,7 +197,8 @@ class NetworkPolicy:
         if steering.shape[1] != 1:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
-        # A NaN prediction steers straight rather than poisoning the controls.
+        # A NaN prediction steers straight rather than poisoning the controls; it is counted.
+        self.nan_predictions += int(np.count_nonzero(~np.isfinite(steering)))
         steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
         if not self.speed_head:
             return steering, None
@@ -218,6 +229,8 @@ def check_model(model: keras.Model) -> None:
             "preprocessing belongs inside the model)"
         )
     outputs = list(getattr(model, "outputs", None) or [])
+    if not outputs:
+        raise ValueError("the steering model has no output")
     if len(outputs) == 2 and not has_speed_head(model):
         names = ", ".join(map(str, getattr(model, "output_names", [])))
         raise ValueError(
@@ -229,27 +242,41 @@ def check_model(model: keras.Model) -> None:
             f"the steering model has {len(outputs)} outputs; expected 1 (steering) or 2 "
             f"(steering, {SPEED_OUTPUT})"
         )
+    names = [str(name) for name in (getattr(model, "output_names", None) or [])]
+    for index, output in enumerate(outputs):
+        shape = tuple(getattr(output, "shape", ()))[1:]
+        if shape not in ((1,), (None,)):
+            label = names[index] if index < len(names) else f"output {index}"
+            raise ValueError(
+                f"the steering model's {label!r} output has shape {shape} per image, "
+                "expected (1,): one value"
+            )
 
 
-def load_model(path: str | Path) -> keras.Model:
-    """Load a ``.keras`` or ``.h5`` steering model for inference (``safe_mode``, not compiled)."""
-    from clonedrive.keras_backend import import_keras
+def load_model(
+    path: str | Path, *, trust: bool = False, runtime: str = "auto"
+) -> keras.Model:
+    """Load a steering model for inference and check it (:func:`check_model`).
 
-    keras = import_keras()
+    ``path``: ``.keras``, ``.h5`` (Keras 3, or a student's Keras 1/2 file) or ``.onnx``.
+    ``trust``: allow ``Lambda`` layers (Python code in the file; ``--trust-model``).
+    ``runtime``: ``"auto"`` (ONNX Runtime for ``.onnx``, else Keras), ``"keras"`` or
+    ``"onnx"`` (a Keras file is converted to ONNX in memory). Raises ``FileNotFoundError`` or
+    ``ValueError`` with a one-line message naming the file.
+    """
+    from clonedrive.drivers.model_file import read_model
 
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"model file not found: {path}")
-    if path.suffix.lower() not in (".keras", ".h5", ".hdf5"):
-        raise ValueError(f"{path}: expected a .keras or .h5 model file")
+    model = read_model(path, trust=trust, runtime=runtime)
     try:
-        model = keras.models.load_model(path, compile=False, safe_mode=True)
-    except (ValueError, TypeError, OSError, KeyError, zipfile.BadZipFile) as error:
-        raise ValueError(f"{path}: cannot load the model: {error}") from error
-    check_model(model)
+        check_model(model)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
     return model
 
 
-def load_policy(path: str | Path, **kwargs: object) -> NetworkPolicy:
-    """A :class:`NetworkPolicy` for the model file at ``path``; ``kwargs`` go to its constructor."""
-    return NetworkPolicy(load_model(path), **kwargs)
+def load_policy(
+    path: str | Path, *, trust: bool = False, runtime: str = "auto", **kwargs: object
+) -> NetworkPolicy:
+    """A :class:`NetworkPolicy` for the model file at ``path`` (see :func:`load_model` for
+    ``trust`` and ``runtime``); ``kwargs`` go to its constructor."""
+    return NetworkPolicy(load_model(path, trust=trust, runtime=runtime), **kwargs)

@@ -94,6 +94,7 @@ class DriveStats:
     last_steering: float = 0.0
     last_throttle: float = 0.0
     last_speed_mph: float = 0.0
+    nan_predictions: int = 0  # frames the policy counted as NaN/infinite predictions
 
     @property
     def bad_total(self) -> int:
@@ -252,8 +253,8 @@ class DriveServer:
             rate = (stats.steer - previous_steer) / max(now - previous_time, 1e-9)
             previous_steer, previous_time = stats.steer, now
             logger.info(
-                "drive: %d connected, %d steer (%.1f/s), %d manual, %d safe, %d bad, %d pings; "
-                "last steering %+.3f throttle %+.2f at %.1f mph",
+                "drive: %d connected, %d steer (%.1f/s), %d manual, %d safe, %d bad, %d pings, "
+                "%d NaN predictions; last steering %+.3f throttle %+.2f at %.1f mph",
                 stats.active_connections,
                 stats.steer,
                 rate,
@@ -261,6 +262,7 @@ class DriveServer:
                 stats.safe,
                 stats.bad_total,
                 stats.pings,
+                stats.nan_predictions,
                 stats.last_steering,
                 stats.last_throttle,
                 stats.last_speed_mph,
@@ -422,6 +424,7 @@ class DriveServer:
             return self._safe("policy_error", f"{type(error).__name__}: {error}")
         if save_error is not None:
             self._bad("save_error", save_error)
+        self._count_nan_predictions()
         stats = self._stats
         stats.steer += 1
         _CONNECTION.get().telemetry += 1
@@ -467,6 +470,16 @@ class DriveServer:
         return None
 
     # ------------------------------------------------------------------ bookkeeping
+
+    def _count_nan_predictions(self) -> None:
+        """Take the policy's count of NaN predictions (a NetworkPolicy keeps one); log them."""
+        count = int(getattr(self.policy, "nan_predictions", 0) or 0)
+        if count <= self._stats.nan_predictions:
+            return
+        self._stats.nan_predictions = count
+        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
+            logger.warning("the model predicted NaN steering (%d frame(s) so far); "
+                           "sent straight steering instead", count)
 
     def _bad(self, reason: str, detail: str) -> None:
         count = self._stats.bad.get(reason, 0) + 1

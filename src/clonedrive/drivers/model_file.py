@@ -1,0 +1,256 @@
+"""Reading a steering-model file: ``.keras``, ``.h5`` (Keras 3, or a student's Keras 1/2) or ONNX.
+
+:func:`read_model` is what every command uses (through :func:`clonedrive.drivers.network.
+load_model`, which also checks the model's inputs and outputs). It looks at the file before
+handing it to Keras, so that each ordinary mistake gets one line naming the file:
+
+* a file that is not a model: a ``.keras`` file is a zip archive holding ``config.json``, an
+  ``.h5`` file starts with the HDF5 signature; anything else is "not a Keras model file" (Keras
+  itself says "File not found" for a file that exists);
+* a ``.keras`` file that is really HDF5, or the other way round (renamed files);
+* a file larger than :data:`MAX_MODEL_BYTES`, or a config larger than :data:`MAX_CONFIG_BYTES`;
+* ``Lambda`` layers (Python code stored in the file): refused unless ``trust`` (the
+  ``--trust-model`` flag), which logs :data:`TRUST_WARNING`.
+
+Students' models (2017-2020) are Keras 1 or 2 ``.h5`` files, most with
+``Lambda(lambda x: x / 255.0 - 0.5)``. The Lambda's code is Python bytecode of the Python that
+saved it (3.5-3.8), which Python 3.11 cannot run. With ``trust``, the code is first tried in a
+separate process; if it does not run there, the network is rebuilt from its layer list without
+running any stored code and the weights are loaded by layer name
+(:mod:`clonedrive.drivers.legacy_keras`).
+
+``runtime="onnx"`` (or a ``.onnx`` file) runs the model with ONNX Runtime
+(:mod:`clonedrive.drivers.onnx_runtime`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import zipfile
+from pathlib import Path
+from typing import Any
+
+logger = logging.getLogger("clonedrive.model")
+
+KERAS_SUFFIXES = (".keras", ".h5", ".hdf5")
+ONNX_SUFFIX = ".onnx"
+RUNTIMES = ("auto", "keras", "onnx")
+#: Larger model files are refused before reading (a student's NVIDIA net is 1-400 MB).
+MAX_MODEL_BYTES = 2 << 30
+#: The JSON layer configuration inside a model file (a few tens of KB in practice).
+MAX_CONFIG_BYTES = 16 << 20
+
+ZIP_SIGNATURE = b"PK\x03\x04"
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: HDF5 allows a user block before the superblock: the signature is at 0, 512, 1024, 2048, ...
+_HDF5_OFFSETS = (0, 512, 1024, 2048, 4096)
+
+TRUST_WARNING = """\
+WARNING: --trust-model: {path} has Lambda layers ({names}): Python code stored in the file.
+WARNING: Keras safe mode is off for this file. Code in a model file runs with your rights:
+WARNING: use this only for a model you made yourself or got from someone you trust."""
+
+
+class ModelFileError(ValueError):
+    """A model file that cannot be used; the message names the file."""
+
+
+def read_model(path: str | Path, *, trust: bool = False, runtime: str = "auto") -> Any:
+    """The model in ``path``, ready for ``predict_on_batch`` (a Keras model, or an
+    :class:`~clonedrive.drivers.onnx_runtime.OnnxModel`). See the module doc.
+
+    Raises ``FileNotFoundError`` (no such file) or :class:`ModelFileError`.
+    """
+    path = Path(path)
+    if runtime not in RUNTIMES:
+        raise ModelFileError(f"runtime {runtime!r}; expected one of: {', '.join(RUNTIMES)}")
+    if not path.exists():
+        raise FileNotFoundError(f"model file not found: {path}")
+    if not path.is_file():
+        raise ModelFileError(f"{path}: not a file (expected a .keras, .h5 or .onnx model file)")
+    suffix = path.suffix.lower()
+    if suffix not in (*KERAS_SUFFIXES, ONNX_SUFFIX):
+        raise ModelFileError(f"{path}: expected a .keras, .h5 or .onnx model file")
+    size = path.stat().st_size
+    if size > MAX_MODEL_BYTES:
+        raise ModelFileError(
+            f"{path}: {size / 2**30:.1f} GiB is over the {MAX_MODEL_BYTES >> 30} GiB limit for "
+            "a model file"
+        )
+    if size == 0:
+        raise ModelFileError(f"{path}: empty file, not a model file")
+    if suffix == ONNX_SUFFIX:
+        if runtime == "keras":
+            raise ModelFileError(f"{path}: an ONNX model runs with --runtime onnx, not keras")
+        from clonedrive.drivers.onnx_runtime import OnnxModel
+
+        return OnnxModel.from_file(path)
+    model = _read_keras(path, trust=trust)
+    if runtime == "onnx":
+        from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+
+        return OnnxModel(onnx_bytes(model), source=f"{path} (converted to ONNX)")
+    return model
+
+
+# --------------------------------------------------------------------------- Keras files
+
+
+def file_kind(path: Path) -> str:
+    """``"zip"`` (a .keras archive), ``"hdf5"`` or ``"other"``, from the file's first bytes."""
+    with open(path, "rb") as handle:
+        head = handle.read(max(_HDF5_OFFSETS) + len(HDF5_SIGNATURE))
+    if head.startswith(ZIP_SIGNATURE):
+        return "zip"
+    if any(head[offset : offset + 8] == HDF5_SIGNATURE for offset in _HDF5_OFFSETS):
+        return "hdf5"
+    return "other"
+
+
+def _read_keras(path: Path, *, trust: bool) -> Any:
+    kind = file_kind(path)
+    suffix = path.suffix.lower()
+    if kind == "other":
+        expected = "a zip archive" if suffix == ".keras" else "an HDF5 file"
+        raise ModelFileError(
+            f"{path}: not a Keras model file (a {suffix} model is {expected}; this file starts "
+            f"with {_head_text(path)})"
+        )
+    if kind == "zip" and suffix != ".keras":
+        raise ModelFileError(f"{path}: a Keras 3 .keras archive named {suffix}: rename it .keras")
+    if kind == "hdf5" and suffix == ".keras":
+        raise ModelFileError(f"{path}: an HDF5 model file named .keras: rename it .h5")
+
+    config, keras_version = model_config(path, kind)
+    lambdas = lambda_layer_names(config)
+    if lambdas and not trust:
+        raise ModelFileError(
+            f"{path}: has Lambda layers ({', '.join(lambdas)}): Python code stored in the file, "
+            "which Keras safe mode refuses to run. If you trust where the file came from, add "
+            "--trust-model"
+        )
+    if lambdas:
+        logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
+
+    from clonedrive.drivers import legacy_keras
+
+    if kind == "hdf5" and legacy_keras.is_legacy_version(keras_version):
+        return legacy_keras.load(path, config, lambdas=lambdas)
+    return keras_load(path, safe_mode=not lambdas)
+
+
+def keras_load(path: Path, *, safe_mode: bool) -> Any:
+    """``keras.models.load_model`` for inference, its errors as :class:`ModelFileError`."""
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
+    try:
+        return keras.models.load_model(path, compile=False, safe_mode=safe_mode)
+    except (ValueError, TypeError, OSError, KeyError, AttributeError, IndexError,
+            RecursionError, zipfile.BadZipFile) as error:
+        raise ModelFileError(f"{path}: cannot load the model: {_one_line(error)}") from None
+
+
+def model_config(path: Path, kind: str) -> tuple[dict, str | None]:
+    """``(the model's layer configuration, the Keras version that saved it or None)``, read as
+    JSON without building anything."""
+    if kind == "zip":
+        text, version = _zip_config(path)
+    else:
+        text, version = _hdf5_config(path)
+    try:
+        config = json.loads(text)
+    except (ValueError, RecursionError) as error:
+        raise ModelFileError(f"{path}: the model configuration is not JSON ({error})") from None
+    if not isinstance(config, dict):
+        raise ModelFileError(f"{path}: the model configuration is not a JSON object")
+    return config, version
+
+
+def _zip_config(path: Path) -> tuple[str, str | None]:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = set(archive.namelist())
+            if "config.json" not in names:
+                raise ModelFileError(
+                    f"{path}: not a Keras model file (a zip archive without config.json)"
+                )
+            text = _zip_member(archive, "config.json", path)
+            version = None
+            if "metadata.json" in names:
+                try:
+                    metadata = json.loads(_zip_member(archive, "metadata.json", path))
+                    version = str(metadata.get("keras_version")) if isinstance(
+                        metadata, dict) else None
+                except ValueError:
+                    version = None
+            return text, version
+    except zipfile.BadZipFile as error:
+        raise ModelFileError(f"{path}: not a Keras model file (broken zip: {error})") from None
+
+
+def _zip_member(archive: zipfile.ZipFile, name: str, path: Path) -> str:
+    info = archive.getinfo(name)
+    if info.file_size > MAX_CONFIG_BYTES:
+        raise ModelFileError(
+            f"{path}: {name} is {info.file_size} bytes, over the {MAX_CONFIG_BYTES} byte limit"
+        )
+    with archive.open(info) as member:
+        data = member.read(MAX_CONFIG_BYTES + 1)
+    if len(data) > MAX_CONFIG_BYTES:
+        raise ModelFileError(f"{path}: {name} is over the {MAX_CONFIG_BYTES} byte limit")
+    return data.decode("utf-8", errors="replace")
+
+
+def _hdf5_config(path: Path) -> tuple[str, str | None]:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as handle:
+            raw = handle.attrs.get("model_config")
+            version = handle.attrs.get("keras_version")
+    except OSError as error:
+        raise ModelFileError(f"{path}: not a readable HDF5 model file ({error})") from None
+    if raw is None:
+        raise ModelFileError(
+            f"{path}: an HDF5 file without a model configuration (weights only?). Save the "
+            "whole model (model.save), or build the network in Python and call "
+            "model.load_weights on this file"
+        )
+    if isinstance(raw, bytes):
+        raw = raw.decode("utf-8", errors="replace")
+    if isinstance(version, bytes):
+        version = version.decode("ascii", errors="replace")
+    text = str(raw)
+    if len(text) > MAX_CONFIG_BYTES:
+        raise ModelFileError(f"{path}: the model configuration is over {MAX_CONFIG_BYTES} bytes")
+    return text, None if version is None else str(version)
+
+
+def lambda_layer_names(config: Any) -> list[str]:
+    """Names of the ``Lambda`` layers anywhere in a model configuration (Keras 1, 2 or 3)."""
+    names: list[str] = []
+    stack = [config]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            if node.get("class_name") == "Lambda":
+                layer = node.get("config")
+                name = layer.get("name") if isinstance(layer, dict) else None
+                names.append(str(name) if name is not None else "unnamed")
+            stack.extend(reversed(list(node.values())))
+        elif isinstance(node, list):
+            stack.extend(reversed(node))
+    return names
+
+
+def _head_text(path: Path) -> str:
+    with open(path, "rb") as handle:
+        head = handle.read(8)
+    return "0x" + head.hex() if head else "nothing"
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split())
+    return text if len(text) <= 300 else text[:300] + "..."

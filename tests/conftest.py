@@ -1,5 +1,58 @@
-"""Shared test set-up: the project's default Keras backend before any test module imports keras."""
+"""Shared test set-up: the project's default Keras backend before any test module imports keras,
+and the fixtures several test files need (a free port, a recorded Udacity frame, tiny models)."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
 
 from clonedrive.keras_backend import choose_backend
 
 choose_backend()
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"
+#: Frames the Udacity simulator recorded (320x160 JPEGs, quality 75).
+UDACITY_IMAGES = FIXTURES / "udacity" / "stationary" / "IMG"
+#: The seed of the shared tiny model (its weights, not its driving, matter to the tests).
+TINY_MODEL_SEED = 3
+
+
+@pytest.fixture()
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listened on a moment ago (connecting is refused)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="session")
+def recorded_jpeg() -> bytes:
+    """The bytes of a center-camera JPEG recorded by the Udacity simulator."""
+    return sorted(UDACITY_IMAGES.glob("center_*.jpg"))[0].read_bytes()
+
+
+@pytest.fixture(scope="session")
+def tiny_model():
+    """The tiny steering network (:mod:`clonedrive.drivers.tiny_model`), seeded; shared, so
+    tests must not train or change it."""
+    from clonedrive.drivers.tiny_model import build_tiny_model
+
+    return build_tiny_model(seed=TINY_MODEL_SEED)
+
+
+@pytest.fixture(scope="session")
+def tiny_model_path(tiny_model, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """:func:`tiny_model` saved as ``tiny.keras`` (the format ``clonedrive drive`` loads)."""
+    path = tmp_path_factory.mktemp("tiny_model") / "tiny.keras"
+    tiny_model.save(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def tiny_h5_path(tiny_model, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """:func:`tiny_model` saved as ``model.h5`` (the file format Udacity's drive.py loads)."""
+    path = tmp_path_factory.mktemp("tiny_h5") / "model.h5"
+    tiny_model.save(path)
+    return path

@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import json
 import math
-import socket
 
 import pytest
 
 from clonedrive.cli import main
 from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_tiny_model
 from clonedrive.udacity.server import DriveServer
 
 
-def test_drives_for_the_time_limit_and_prints_metrics(capsys: pytest.CaptureFixture) -> None:
-    policy = NetworkPolicy(build_tiny_model(seed=5), set_speed_mph=9.0)
+def test_drives_for_the_time_limit_and_prints_metrics(capsys: pytest.CaptureFixture,
+                                                     tiny_model) -> None:
+    policy = NetworkPolicy(tiny_model, set_speed_mph=9.0)
     with DriveServer(policy, port=0, status_interval_s=0) as server:
         code = main(["autonomous", "--track", "lake", "--json", "--max-seconds", "2",
                      "--no-scenery", "--port", str(server.port)])
@@ -31,10 +30,8 @@ def test_drives_for_the_time_limit_and_prints_metrics(capsys: pytest.CaptureFixt
     assert summary["distance_m"] > 0
 
 
-def test_no_drive_server_is_a_clear_error(capsys: pytest.CaptureFixture) -> None:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+def test_no_drive_server_is_a_clear_error(capsys: pytest.CaptureFixture, free_port: int) -> None:
+    port = free_port
     code = main(["autonomous", "--json", "--no-scenery", "--max-seconds", "1",
                  "--port", str(port), "--connect-timeout", "0.3"])
     assert code == 1

@@ -14,10 +14,7 @@ import pytest
 from websockets.asyncio.client import connect
 
 from clonedrive.cli import main
-from clonedrive.drivers.tiny_model import build_tiny_model
 from clonedrive.udacity import protocol
-
-FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 
 
 def test_missing_model_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -30,11 +27,11 @@ def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert "--speed" in capsys.readouterr().err
 
 
-def test_serves_the_simulator_until_interrupted(tmp_path: Path) -> None:
-    model = tmp_path / "model.keras"
-    build_tiny_model().save(model)
+def test_serves_the_simulator_until_interrupted(tmp_path: Path, tiny_model_path: Path,
+                                                recorded_jpeg: bytes) -> None:
+    model = tiny_model_path
     frames = tmp_path / "run1"
-    jpeg = sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
+    jpeg = recorded_jpeg
     command = [sys.executable, "-m", "clonedrive", "drive", str(model), str(frames)]
     command += ["--port", "0", "--speed", "15", "--slow-in-curves"]
     process = subprocess.Popen(

@@ -14,7 +14,6 @@ from clonedrive.drivers.network import (
     load_model,
     load_policy,
 )
-from clonedrive.drivers.tiny_model import build_tiny_model
 
 
 def test_pi_matches_drive_py_by_hand() -> None:
@@ -49,11 +48,6 @@ def test_pi_integrates_when_the_error_unwinds_saturation() -> None:
     # A negative error brings the output back inside: it is summed.
     assert controller.update(19.0) == pytest.approx(0.1 * -10 + 0.002 * 590)
     assert controller.integral_mph == pytest.approx(590.0)
-
-
-@pytest.fixture(scope="module")
-def tiny_model():
-    return build_tiny_model(seed=5)
 
 
 def frames(count: int, seed: int) -> np.ndarray:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import socket
 from datetime import timedelta
 
 import numpy as np
@@ -289,26 +288,19 @@ def test_hud_shows_speed_steering_cte_and_recording_state(tmp_path):
         assert len(session.hud_lines()) >= 4
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
-def test_autonomous_mode_without_a_server_says_so(tmp_path):
+def test_autonomous_mode_without_a_server_says_so(tmp_path, free_port):
     with open_session(tmp_path, sim_config=SimConfig(cameras=("center",), scenery=False),
-                      server_port=_free_port(), connect_timeout_s=0.3) as session:
+                      server_port=free_port, connect_timeout_s=0.3) as session:
         session.key_down("p")
         assert session.mode == DRIVING
         assert "cannot connect" in session.message
 
 
-def test_autonomous_mode_lets_a_drive_server_steer_and_a_key_take_over(tmp_path):
+def test_autonomous_mode_lets_a_drive_server_steer_and_a_key_take_over(tmp_path, tiny_model):
     from clonedrive.drivers.network import NetworkPolicy
-    from clonedrive.drivers.tiny_model import build_tiny_model
     from clonedrive.udacity.server import DriveServer
 
-    policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=9.0)
+    policy = NetworkPolicy(tiny_model, set_speed_mph=9.0)
     with DriveServer(policy, port=0, status_interval_s=0) as server, \
             open_session(tmp_path, sim_config=SimConfig(cameras=("center",), scenery=False),
                          server_port=server.port) as session:

@@ -24,7 +24,6 @@ import numpy as np
 import pytest
 
 from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_tiny_model
 from clonedrive.sim.simulator import Controls
 from clonedrive.udacity import protocol
 from clonedrive.udacity.client import (
@@ -81,12 +80,6 @@ def wait_until(condition, timeout_s: float = 5.0) -> bool:
             return False
         time.sleep(0.01)
     return True
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 # --------------------------------------------------------------------------- our DriveServer
@@ -146,8 +139,8 @@ def test_two_telemetry_on_open_keeps_one_extra_in_flight(frames: list[np.ndarray
             assert wait_until(lambda: server.stats().steer == 7)  # the extra one was answered
 
 
-def test_no_server_is_a_clear_error() -> None:
-    config = ClientConfig(port=free_port(), connect_timeout_s=0.5)
+def test_no_server_is_a_clear_error(free_port: int) -> None:
+    config = ClientConfig(port=free_port, connect_timeout_s=0.5)
     started = time.monotonic()
     with pytest.raises(DriveServerError, match="cannot connect"):
         SimulatorClient(config).connect()
@@ -179,17 +172,9 @@ def test_config_is_checked() -> None:
 
 
 @pytest.fixture(scope="module")
-def tiny_h5(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
-    path = tmp_path_factory.mktemp("udacity") / "model.h5"  # drive.py's file format
-    model = build_tiny_model(seed=3)
-    model.save(path)
-    return path, model
-
-
-@pytest.fixture(scope="module")
-def udacity_style_server(tiny_h5, tmp_path_factory: pytest.TempPathFactory):
+def udacity_style_server(tiny_h5_path: Path, tmp_path_factory: pytest.TempPathFactory):
     """The drive.py-style server in a subprocess; yields its port."""
-    model_path, _ = tiny_h5
+    model_path = tiny_h5_path
     log = tmp_path_factory.mktemp("udacity_log") / "server.out"
     env = dict(os.environ, KERAS_BACKEND="torch", PYTHONUNBUFFERED="1")
     with open(log, "w") as out:
@@ -228,9 +213,9 @@ def expected_steer(model, jpeg: bytes, speeds_mph: list[float]) -> tuple[float, 
 
 
 def test_drives_against_a_drive_py_style_python_socketio_4_server(
-    udacity_style_server: int, tiny_h5, frames: list[np.ndarray]
+    udacity_style_server: int, tiny_model, frames: list[np.ndarray]
 ) -> None:
-    _, model = tiny_h5
+    model = tiny_model
     speeds = [0.5 * step for step in range(len(frames))]
     with SimulatorClient(ClientConfig(port=udacity_style_server)) as client:
         replies = [client.controls_for(frame, 0.0, 0.2, speed)
@@ -277,8 +262,8 @@ def test_telemetry_frame_is_what_drive_py_decodes(frames: list[np.ndarray]) -> N
 # --------------------------------------------------------------------------- end to end
 
 
-def test_drive_autonomous_end_to_end_with_our_drive_server() -> None:
-    policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=9.0)
+def test_drive_autonomous_end_to_end_with_our_drive_server(tiny_model) -> None:
+    policy = NetworkPolicy(tiny_model, set_speed_mph=9.0)
     with DriveServer(policy, port=0, status_interval_s=0) as server:
         config = AutonomousConfig(track="lake", laps=1, max_seconds=3, scenery=False,
                                   client=ClientConfig(port=server.port))

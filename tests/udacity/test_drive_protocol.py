@@ -4,19 +4,11 @@ from __future__ import annotations
 
 import base64
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from clonedrive.udacity import protocol
-
-FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
-
-
-@pytest.fixture(scope="module")
-def recorded_jpeg() -> bytes:
-    return sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
 
 
 def test_open_frame_is_what_working_servers_send() -> None:

@@ -19,12 +19,10 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, ConnectionClosedError, InvalidStatus
 
 from clonedrive.drivers.network import NetworkPolicy, load_policy
-from clonedrive.drivers.tiny_model import build_tiny_model
 from clonedrive.images import read_rgb
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 
-FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 NUMBER = r"(-?\d+(?:\.\d+)?)"
 STEER = re.compile(
     r'42\["steer",\{"steering_angle":"' + NUMBER + r'","throttle":"' + NUMBER + r'"\}\]'
@@ -43,18 +41,6 @@ def simulator_frame(image_jpeg: bytes, speed: str = "0.0000") -> str:
         '42["telemetry",{"steering_angle":"0.0000","throttle":"0.0000",'
         f'"speed":"{speed}","image":"{image}"}}]'
     )
-
-
-@pytest.fixture(scope="module")
-def recorded_jpeg() -> bytes:
-    return sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
-
-
-@pytest.fixture(scope="module")
-def model_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("model") / "tiny.keras"
-    build_tiny_model(seed=3).save(path)
-    return path
 
 
 class RecordingPolicy:
@@ -116,9 +102,10 @@ def jpeg_of(image_rgb: np.ndarray) -> bytes:
     return protocol.encode_image(image_rgb, quality=95)
 
 
-def test_handshake_steer_reply_and_lock_step(model_path: Path, recorded_jpeg: bytes) -> None:
-    server = DriveServer(load_policy(model_path, set_speed_mph=9.0), port=0)
-    reference = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=9.0)
+def test_handshake_steer_reply_and_lock_step(tiny_model_path: Path, tiny_model,
+                                             recorded_jpeg: bytes) -> None:
+    server = DriveServer(load_policy(tiny_model_path, set_speed_mph=9.0), port=0)
+    reference = NetworkPolicy(tiny_model, set_speed_mph=9.0)
     image = protocol.decode_image(recorded_jpeg)
     speeds = ["0.0000", "3.2500", "8.1000", "9.0000", "11.7500"]
 

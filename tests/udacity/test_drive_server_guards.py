@@ -20,7 +20,6 @@ from clonedrive.cli import main
 from clonedrive.udacity.server import DriveServer, DriveServerConfig
 from clonedrive.udacity.server_config import IDLE_CLOSE_CODE
 
-FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 TIMEOUT_S = 10.0
 
 
@@ -30,11 +29,6 @@ class FixedPolicy:
 
     def act(self, image_rgb: np.ndarray, speed_mph: float) -> tuple[float, float]:
         return 0.1, 0.3
-
-
-@pytest.fixture(scope="module")
-def jpeg() -> bytes:
-    return sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
 
 
 def telemetry(jpeg: bytes) -> str:
@@ -97,7 +91,8 @@ def test_on_every_interface_any_address_but_no_foreign_name() -> None:
     assert not DriveServerConfig(host="10.1.2.3").host_allowed("10.9.9.9")
 
 
-def test_idle_connections_are_closed_and_the_simulator_gets_in(jpeg: bytes) -> None:
+def test_idle_connections_are_closed_and_the_simulator_gets_in(recorded_jpeg: bytes) -> None:
+    jpeg = recorded_jpeg
     """Two clients that only ping fill the server; they are closed after the idle timeout
     while a client sending telemetry all along keeps its connection."""
     idle_s = 1.0
@@ -149,7 +144,8 @@ def test_idle_connections_are_closed_and_the_simulator_gets_in(jpeg: bytes) -> N
     assert stats.idle_closed >= 2  # the two pingers (and the 101 probe that sent nothing)
 
 
-def test_saved_frames_stop_at_the_image_folder_cap(tmp_path: Path, jpeg: bytes) -> None:
+def test_saved_frames_stop_at_the_image_folder_cap(tmp_path: Path, recorded_jpeg: bytes) -> None:
+    jpeg = recorded_jpeg
     folder = tmp_path / "frames"
     folder.mkdir()
     (folder / "earlier.bin").write_bytes(bytes(len(jpeg)))  # counted towards the cap

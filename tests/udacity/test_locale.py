@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import base64
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,6 @@ from websockets.asyncio.client import connect
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 
-FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 CULTURES = {"en-US": (".", ","), "de-DE": (",", ".")}  # culture -> (decimal, group separator)
 
 
@@ -41,11 +39,6 @@ def simulator_frame(image_jpeg: bytes, culture: str) -> str:
         f'42["telemetry",{{"steering_angle":"{angle}","throttle":"{throttle}",'
         f'"speed":"{speed}","image":"{image}"}}]'
     )
-
-
-@pytest.fixture(scope="module")
-def recorded_jpeg() -> bytes:
-    return sorted(FIXTURE_IMAGES.glob("center_*.jpg"))[0].read_bytes()
 
 
 def test_the_old_reply_is_misread_by_a_comma_simulator() -> None:

@@ -50,10 +50,12 @@ def render_only_steps_per_s(steps: int, track_name: str = "lake") -> float:
     """The reference: the center camera alone, built and rendered along the centreline."""
     from clonedrive.sim.cameras import CameraRig
     from clonedrive.sim.scene import Scene
+    from clonedrive.udacity_spec import CONTROL_HZ
     from clonedrive.world.catalog import load_track
+    from clonedrive.world.vehicle import MPH_TO_MPS
 
     track = load_track(track_name)
-    step_m = 20.0 * 0.44704 / 15.0
+    step_m = 20.0 * MPH_TO_MPS / CONTROL_HZ
     start = time.perf_counter()
     with Scene(track) as scene, CameraRig(scene, cameras=("center",)) as rig:
         for i in range(steps):

@@ -10,6 +10,7 @@ import math
 import time
 
 from clonedrive.sim.simulator import Controls, SimConfig, Simulator
+from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 
 def drive(track: str, sim_seconds: float) -> float:
@@ -19,7 +20,7 @@ def drive(track: str, sim_seconds: float) -> float:
         start = time.perf_counter()
         for _ in range(steps):
             steering = -0.15 * obs.cte_m + 1.2 * obs.heading_error_rad
-            steering -= 2.7 * obs.curvature_per_m / math.tan(math.radians(25))
+            steering -= 2.7 * obs.curvature_per_m / math.tan(math.radians(MAX_WHEEL_ANGLE_DEG))
             throttle = 0.3 * (15.0 - obs.speed_mph)
             obs, _ = sim.step(Controls(steering=max(-1, min(1, steering)),
                                        throttle=max(-1, min(1, throttle))))

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.udacity_spec import CONTROL_HZ
+
 TARGET_SAMPLES_PER_S = 150.0
 
 
@@ -106,7 +108,7 @@ def main() -> None:
     rate = summary.samples_per_s
     print(f"recorded {summary.rows} rows ({summary.laps} lap of lake at <= {args.speed:g} mph) "
           f"in {summary.wall_seconds:.1f} s: {rate:.0f} samples/s "
-          f"({rate / 15.0:.1f}x the 15 Hz real-time rate)")
+          f"({rate / CONTROL_HZ:.1f}x the {CONTROL_HZ:g} Hz real-time rate)")
     print("where the time goes, per sample, each part measured alone:")
     print(f"  render 3 cameras + physics  {1000 * render_s:6.2f} ms  "
           f"(ceiling {1 / render_s:.0f} samples/s)")

@@ -27,6 +27,9 @@ import time
 
 import numpy as np
 
+from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.world.vehicle import MPH_TO_MPS
+
 
 def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
     from clonedrive.sim.cameras import CameraRig
@@ -34,7 +37,7 @@ def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
     from clonedrive.world.catalog import load_track
 
     track = load_track(track_name)
-    step_m = 30.0 * 0.44704 / 15.0  # 30 mph at 15 Hz
+    step_m = 30.0 * MPH_TO_MPS / CONTROL_HZ  # 30 mph, one control step
     build_start = time.perf_counter()
     with Scene(track) as scene, CameraRig(scene) as rig:
         build_s = time.perf_counter() - build_start
@@ -180,7 +183,7 @@ def measure_bare(triangles: int, steps: int, cameras: int = 3, width: int = 320,
             buffer.make_display_region().set_camera(node)
             buffer.set_clear_color((0.5, 0.6, 0.8, 1.0))
             textures.append(texture)
-        step_m = 30.0 * 0.44704 / 15.0
+        step_m = 30.0 * MPH_TO_MPS / CONTROL_HZ
 
         def drive(count: int, start_m: float) -> None:
             for i in range(count):

@@ -24,6 +24,7 @@ from pathlib import Path
 from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
 from clonedrive.config import config_to_dict, write_json_atomic
+from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 
 #: bench.json's format version.
 BENCH_FORMAT = 1
@@ -120,7 +121,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         "format": BENCH_FORMAT,
         "suite": suite.to_dict(),
         "settings": {**config_to_dict(config), "workers": None if config.ray else workers},
-        "speed_control": "drive.py's PI (kp 0.1, ki 0.002) at the set speed"
+        "speed_control": f"drive.py's PI (kp {SPEED_KP}, ki {SPEED_KI}) at the set speed"
                          + (", target speed reduced with |steering|" if config.slow_in_curves
                             else ", no curve slowing (drive.py parity)"),
         "complete": False,

@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from clonedrive.drivers.network import load_model
+    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     model_path = Path(args.model)
     out = Path(args.out) if args.out else model_path.with_suffix(".onnx")
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     except OSError as error:
         print(f"error: cannot write {out}: {error}", file=sys.stderr)
         return 1
-    frames = np.random.default_rng(0).integers(0, 256, (8, 160, 320, 3), dtype=np.uint8)
+    frames = np.random.default_rng(0).integers(0, 256, (8, *IMAGE_SHAPE), dtype=np.uint8)
     keras_out = model.predict_on_batch(frames.astype(np.float32))
     onnx_out = onnx_model.predict_on_batch(frames)
     pairs = zip(keras_out, onnx_out, strict=True) if isinstance(keras_out, list) else [

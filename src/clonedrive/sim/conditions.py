@@ -285,4 +285,6 @@ def jpeg_round_trip(image_rgb: np.ndarray, quality: int) -> np.ndarray:
                             [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError(f"could not encode a JPEG of quality {quality}")
-    return cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    from clonedrive.images import decode_rgb
+
+    return decode_rgb(data, name=f"a JPEG of quality {quality}")

@@ -9,7 +9,6 @@ together.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import shutil
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.config import atomic_path
+from clonedrive.config import read_json as read_json_file
 from clonedrive.images import ImageDecodeError, read_rgb
 from clonedrive.model.history import HISTORY_NAME
 from clonedrive.paths import safe_stem
@@ -132,9 +132,9 @@ class ReportContext:
 
 
 def read_json(path: Path) -> dict:
-    """The JSON object in ``path``; ``ValueError`` naming the file if it holds something else."""
-    with open(path, encoding="utf-8") as handle:
-        data = json.load(handle)
+    """The JSON object in ``path`` (read by :func:`clonedrive.config.read_json`: bounded, one
+    line naming the file for anything unreadable); ``ValueError`` if it holds something else."""
+    data = read_json_file(path)
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a JSON object")
     return data

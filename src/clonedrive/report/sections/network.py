@@ -16,8 +16,9 @@ def build(ctx: ReportContext) -> list[Section]:
     model_path = train / "model.keras" if train else None
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No `model.keras`: network section skipped.")
-    import keras
+    from clonedrive.keras_backend import import_keras
 
+    keras = import_keras()
     model = keras.saving.load_model(model_path, safe_mode=True, compile=False)
     rows = []
     for layer in model.layers:

@@ -46,6 +46,8 @@ class BenchConfig:
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
+    trust_model: bool = False  #: allow Lambda layers (--trust-model; drivers.model_file)
+    runtime: str = "auto"  #: "auto", "keras" or "onnx" (--runtime)
 
     def __post_init__(self) -> None:
         if not self.models:
@@ -54,6 +56,8 @@ class BenchConfig:
             _label_and_path(entry)
         if self.workers is not None and self.workers < 1:
             raise ValueError(f"workers must be at least 1, got {self.workers}")
+        if self.runtime not in ("auto", "keras", "onnx"):
+            raise ValueError(f"runtime {self.runtime!r}; expected auto, keras or onnx")
         if not 1 <= self.batch <= 64:
             raise ValueError(f"batch must be in [1, 64], got {self.batch}")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
@@ -98,6 +102,7 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
         for i in range(0, len(episodes), config.batch):
             tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
                           "slow_in_curves": config.slow_in_curves,
+                          "trust_model": config.trust_model, "runtime": config.runtime,
                           "episodes": episodes[i:i + config.batch], **common})
     return tasks, refs
 
@@ -188,7 +193,8 @@ def add_offline(report: dict, config: BenchConfig) -> None:
     """Each model's MSE on held-out recordings, and its correlation with closed-loop figures."""
     rows = _offline_rows(config.offline_data)
     for model in report["models"].values():
-        model["offline_mse"] = offline_mse(model["path"], rows)
+        model["offline_mse"] = offline_mse(model["path"], rows, trust=config.trust_model,
+                                           runtime=config.runtime)
     models = list(report["models"].values())
     mse = [m["offline_mse"] for m in models]
     report["offline"] = {
@@ -214,14 +220,15 @@ def _offline_rows(folders: tuple[str, ...]) -> list:
     return rows
 
 
-def offline_mse(model_path: str, rows: list) -> float:
+def offline_mse(model_path: str, rows: list, *, trust: bool = False,
+                runtime: str = "auto") -> float:
     """Mean squared error of the model's steering on the center images of ``rows``."""
     import numpy as np
 
     from clonedrive.drivers.network import load_policy
     from clonedrive.images import read_rgb
 
-    policy = load_policy(model_path)
+    policy = load_policy(model_path, trust=trust, runtime=runtime)
     errors = []
     for start in range(0, len(rows), 64):
         chunk = rows[start:start + 64]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.model_options import add_model_arguments
+
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
     "Drive one or more models through every split of a benchmark suite (built in: v1; or a "
@@ -39,6 +41,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-scenery", action="store_true", help="road and terrain only")
     parser.add_argument("--out", default="runs/bench", help="output folder")
     parser.add_argument("--json", action="store_true", help="print bench.json's content")
+    add_model_arguments(parser)
 
 
 def run(args) -> int:
@@ -52,7 +55,8 @@ def run(args) -> int:
                              splits=tuple(args.split or ()), workers=args.workers,
                              ray=args.ray, batch=args.batch, slow_in_curves=args.slow_in_curves,
                              scenery=not args.no_scenery, max_seconds=args.max_seconds,
-                             offline_data=tuple(args.offline_data or ()))
+                             offline_data=tuple(args.offline_data or ()),
+                             trust_model=args.trust_model, runtime=args.runtime)
         load_suite(config.suite)
         check_output_folder(args.out)
         report = bench(config, args.out, progress=not args.json)

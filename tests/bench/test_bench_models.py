@@ -1,0 +1,34 @@
+"""bench with students' Lambda models (--trust-model) and ONNX models (--runtime)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from clonedrive.bench.driving import drive_batch
+from clonedrive.bench.run import BenchConfig, _offline_rows, offline_mse
+from clonedrive.bench.suite import EpisodeSpec
+from clonedrive.sim.conditions import Conditions
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "drivers"))
+from student_models import student_model, write_keras2_h5  # noqa: E402
+
+FIXTURE = Path(__file__).parents[1] / "fixtures" / "udacity" / "lake_posix_mixed_columns"
+
+
+def test_a_students_model_is_benched_only_with_trust(tmp_path: Path) -> None:
+    path = str(write_keras2_h5(tmp_path / "model.h5", student_model(seed=2)))
+    rows = _offline_rows((str(FIXTURE),))[:16]
+    with pytest.raises(ValueError, match="--trust-model"):
+        offline_mse(path, rows)
+    assert offline_mse(path, rows, trust=True) >= 0.0
+    spec = EpisodeSpec(split="a", index=0, track="lake", speed_mph=10.0, family="clear", seed=0,
+                       conditions=Conditions(), laps=1)
+    task = {"kind": "model", "model": path, "slow_in_curves": False, "scenery": False,
+            "max_seconds": 1.0, "trust_model": True, "episodes": [spec]}
+    [result] = drive_batch(task)
+    assert result["distance_m"] > 0.0
+    with pytest.raises(ValueError, match="runtime 'tpu'"):
+        BenchConfig(models=(path,), runtime="tpu")

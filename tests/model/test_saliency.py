@@ -85,3 +85,21 @@ def test_saliency_command_on_images_and_logs(tmp_path, capsys) -> None:
     assert main(["saliency", str(tmp_path / "model.keras"), str(tmp_path / "nothing.jpg"),
                  "--out", str(tmp_path / "bad")]) == 2
     assert "nothing.jpg" in capsys.readouterr().err
+
+
+def test_evaluate_video_can_show_where_the_network_looks(tmp_path) -> None:
+    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
+    from clonedrive.evaluate.video import read_stills
+
+    policy = NetworkPolicy(build_model("fast", seed=0))
+    greens = {}
+    for painted in (False, True):
+        out = tmp_path / str(painted)
+        config = EvalConfig(tracks=("lake",), laps=1, max_seconds=2.0, video=True,
+                            video_saliency=painted, scenery=False, expert_reference=False)
+        report = evaluate(policy, config, out, progress=False)
+        (_, frame), = read_stills(out / report["runs"][0]["video"], count=1)
+        band = frame[2 * 90:2 * 130].astype(int)  # the HUD frame is the camera at 2x
+        greens[painted] = float(np.mean(band[..., 1] - band[..., 0]))
+    assert greens[True] > greens[False] + 10.0  # the mask is painted green

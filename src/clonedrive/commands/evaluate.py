@@ -32,6 +32,9 @@ def add_arguments(parser) -> None:
                         help="set speed on the unseen tracks (default: the first --speed)")
     parser.add_argument("--video", action="store_true",
                         help="write an mp4 of the center camera with a HUD per built-in run")
+    parser.add_argument("--video-saliency", action="store_true",
+                        help="with --video: paint the VisualBackProp saliency mask (where the "
+                             "network looks) onto the frames")
     parser.add_argument("--slow-in-curves", action="store_true",
                         help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=8,
@@ -64,7 +67,8 @@ def run(args) -> int:
         config = EvalConfig(tracks=tuple(tracks), speeds_mph=tuple(args.speed or [15.0]),
                             laps=args.laps, unseen=args.unseen,
                             unseen_speed_mph=args.unseen_speed, video=args.video,
-                            slow_in_curves=args.slow_in_curves, batch=args.batch)
+                            slow_in_curves=args.slow_in_curves, batch=args.batch,
+                            video_saliency=args.video_saliency)
     except ValueError as error:  # --speed nan, -5, 31...
         print(f"error: {error}", file=sys.stderr)
         return 2

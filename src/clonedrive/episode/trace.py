@@ -3,7 +3,9 @@
 :class:`RunTrace` is filled by the episode runner (:class:`clonedrive.episode.runner.Episode`)
 for every closed loop -- evaluation, the Udacity client, DAgger -- so that each reports the same
 figures computed the same way: laps, interventions, autonomy %, mean and max |CTE|, steering
-smoothness, mean speed, distance, and why the episode stopped.
+smoothness, mean speed, distance, and why the episode stopped; the first lap's time (when it
+was clean) and the smoothness figures of :mod:`clonedrive.episode.smoothness` (steering rate and
+jerk, lateral acceleration and jerk), which evaluate and bench divide by the expert's.
 """
 
 from __future__ import annotations
@@ -11,6 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from clonedrive.episode.smoothness import smoothness_figures
+from clonedrive.world.vehicle import MPH_TO_MPS
 
 #: NVIDIA (Bojarski et al. 2016): each intervention is charged six seconds.
 SECONDS_PER_INTERVENTION = 6.0
@@ -62,6 +67,10 @@ class RunTrace:
     off_road: list[OffRoadRecord] = field(default_factory=list)
     laps_completed: int = 0
     distance_m: float = 0.0
+    #: Indices of the steps after which the car was put back on the road (off-road events).
+    breaks: list = field(default_factory=list)
+    #: Simulated time [s] when the first lap was completed clean (None: not, or not first).
+    lap_time_s: float | None = None
     timed_out: bool = False  #: stopped by the time limit or the cap on simulated seconds
     stopped: str | None = None  #: the episode's stop reason (clonedrive.episode.rules.Stop)
 
@@ -73,12 +82,15 @@ class RunTrace:
         self.cte_m.append(obs.cte_m)
         self.steering.append(steering)
         self.speed.append(obs.speed_mph)
+        if self.lap_time_s is None and obs.laps == 1 and not self.off_road:
+            self.lap_time_s = float(obs.time_s)
 
     def add_off_road(self, event, frame_png: str | None = None) -> None:
         """Record an off-road event (a simulator ``OffRoadEvent``) and the frame seen then."""
         self.off_road.append(OffRoadRecord(
             time_s=event.time_s, s_m=event.s_m, x_m=event.x_m, y_m=event.y_m,
             cte_m=event.cte_m, lap=event.lap, frame_png=frame_png))
+        self.breaks.append(len(self.time_s) - 1)
 
     def summary(self) -> dict:
         """The figures written to eval.json for this run."""
@@ -99,6 +111,10 @@ class RunTrace:
             "mean_speed_mph": round(float(np.mean(self.speed)) if self.speed else 0.0, 2),
             "distance_m": round(self.distance_m, 1),
             "elapsed_s": round(elapsed, 2),
+            "lap_time_s": None if self.lap_time_s is None else round(self.lap_time_s, 3),
+            **smoothness_figures(self.steering, self.x_m, self.y_m,
+                                 np.asarray(self.speed, dtype=float) * MPH_TO_MPS,
+                                 self.control_hz, self.breaks),
             "timed_out": self.timed_out,
             "stopped": None if self.stopped is None else str(self.stopped),
             "off_road_events": [

@@ -28,6 +28,7 @@ import numpy as np
 from clonedrive.config import save_config, write_json_atomic
 from clonedrive.episode.rules import TIME_LIMIT_FACTOR, EpisodeRules
 from clonedrive.episode.runner import Episode, Runner, Step
+from clonedrive.evaluate.reference import against_expert
 from clonedrive.paths import safe_stem
 from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS
@@ -60,6 +61,10 @@ class EvalConfig:
     batch: int = 8  #: runs driven in lock-step (their frames batched through the network)
     time_limit_factor: float = TIME_LIMIT_FACTOR  #: stop after this x the laps' time at set speed
     max_seconds: float | None = None  #: cap on simulated time per run (quick checks)
+    #: Each run also gets the expert's figures on the same track and cap, and the ratios
+    #: (lap time, smoothness) to them (evaluate.reference).
+    expert_reference: bool = True
+    video_saliency: bool = False  #: paint the VisualBackProp mask onto the video frames
 
     def __post_init__(self) -> None:
         if isinstance(self.tracks, str) or not all(isinstance(t, str) and t for t in self.tracks):
@@ -109,6 +114,7 @@ class _Run:
     spec: RunSpec
     episode: Episode
     name: str  #: file-name stem of its outputs
+    saliency: object = None  #: a model.saliency.VisualBackProp painting its video frames
     video: object = None
     result: dict | None = None
 
@@ -178,6 +184,8 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
     finished: dict[int, dict] = {}
 
     def publish(run: _Run) -> None:
+        if config.expert_reference:
+            run.result.update(against_expert(run.result, max_seconds=config.max_seconds))
         finished[run.index] = run.result
         report["runs"] = [finished[index] for index in sorted(finished)]
         report["totals"] = _totals(report["runs"])
@@ -238,6 +246,12 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], config: EvalConfig, o
     try:
         for index, spec in group:
             runs.append(_open_run(index, spec, config, out, taken))
+        if config.video_saliency and any(run.video is not None for run in runs):
+            from clonedrive.model.saliency import VisualBackProp
+
+            saliency = VisualBackProp(policy.model)
+            for run in runs:
+                run.saliency = saliency
         runner = Runner([run.episode for run in runs],
                         NetworkDriver(policy, [run.spec.speed_mph for run in runs]))
         runner.reset()
@@ -266,9 +280,14 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
     earlier = len(trace.off_road) - len(step.events)  # interventions before this step
     if run.video is not None:
         observed = step.observed
+        frame = step.seen.images["center"]
+        if run.saliency is not None:
+            from clonedrive.model.saliency import overlay
+
+            frame = overlay(frame, run.saliency.masks(frame)[0])
         # A callable: the HUD is drawn on the video's feeder thread, off the driving loop.
         run.video.append(functools.partial(
-            hud_frame, step.seen.images["center"], steering=step.decision.controls.steering,
+            hud_frame, frame, steering=step.decision.controls.steering,
             speed_mph=observed.speed_mph, cte_m=observed.cte_m,
             lap=run.episode.laps_started, laps=run.spec.laps, interventions=earlier))
     for number, record in enumerate(trace.off_road[earlier:], start=earlier + 1):
@@ -328,16 +347,22 @@ def _totals(results: list[dict]) -> dict:
 
 
 def format_table(report: dict) -> str:
-    """The printed results table."""
+    """The printed results table; ``lap/exp`` and ``rate/exp``: lap time and steering rate over
+    the expert's on the same track and cap."""
     head = (f"{'track':<10}{'mph':>5}{'laps':>7}{'interv.':>9}{'auton.%':>9}{'mean|CTE|':>10}"
-            f"{'max|CTE|':>9}{'smooth':>8}{'speed':>7}{'dist m':>8}")
+            f"{'max|CTE|':>9}{'smooth':>8}{'speed':>7}{'dist m':>8}{'lap/exp':>8}{'rate/exp':>9}")
     lines = [head, "-" * len(head)]
+
+    def ratio(value) -> str:
+        return "-" if value is None else f"{value:.2f}"
+
     for r in report["runs"]:
         laps = f"{r['laps_completed']}/{r['laps_target']}"
         lines.append(
             f"{r['track']:<10}{r['speed_mph']:>5g}{laps:>7}{r['interventions']:>9}"
             f"{r['autonomy_pct']:>9.1f}{r['mean_abs_cte_m']:>10.2f}{r['max_abs_cte_m']:>9.2f}"
-            f"{r['smoothness']:>8.2f}{r['mean_speed_mph']:>7.1f}{r['distance_m']:>8.0f}")
+            f"{r['smoothness']:>8.2f}{r['mean_speed_mph']:>7.1f}{r['distance_m']:>8.0f}"
+            f"{ratio(r.get('lap_time_ratio')):>8}{ratio(r.get('steering_rate_per_s_ratio')):>9}")
     for key, total in report["totals"].items():
         lines.append(f"{key}: {total['laps_completed']}/{total['laps_target']} laps "
                      f"({total['laps_completed_pct']:.0f} %), {total['interventions']} "

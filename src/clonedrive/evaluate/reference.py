@@ -1,0 +1,54 @@
+"""The expert's reference run: what the networks' lap times and smoothness are measured against.
+
+DESIGN.md's **lap-time ratio** is a clean lap's time over the expert's clean lap time on the same
+track, start and speed cap; the **smoothness ratios** divide a run's steering rate, steering
+jerk and lateral figures by the expert's on the same track and cap. :func:`expert_reference`
+drives the expert (no steering noise, cameras off: physics only, fast) from the evaluation's
+start through the episode runner, under the same rules as the evaluated car, and returns its
+run summary (``lap_time_s``: the first clean lap's time, from a standing start, as for the
+network). Results are cached per (track, speed, laps, cap) within a process.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+
+def expert_reference(track: str, speed_mph: float, *, laps: int = 1,
+                     max_seconds: float | None = None) -> dict:
+    """The expert's run summary on ``track`` at up to ``speed_mph`` (see the module doc)."""
+    return dict(_expert_reference(str(track), float(speed_mph), int(laps), max_seconds))
+
+
+@lru_cache(maxsize=256)
+def _expert_reference(track: str, speed_mph: float, laps: int, max_seconds: float | None
+                      ) -> dict:
+    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.rules import EpisodeRules
+    from clonedrive.episode.runner import Episode, PerCar, Runner
+    from clonedrive.sim.simulator import SimConfig, Simulator
+
+    with Simulator(track, SimConfig(cameras=())) as sim:
+        episode = Episode(sim, EpisodeRules(laps=laps, set_speed_mph=speed_mph,
+                                            max_seconds=max_seconds), track=track)
+        expert = ExpertDriver(sim.track, ExpertConfig(speed_mph=speed_mph))
+        Runner([episode], PerCar([ExpertCar(expert)])).run()
+        return episode.trace.summary()
+
+
+def against_expert(run: dict, *, max_seconds: float | None = None) -> dict:
+    """For one run's summary (eval.json entry): ``expert`` (the expert's lap time and
+    smoothness figures on the same track, cap and laps), ``lap_time_ratio`` (None unless both
+    drove a clean first lap) and the ``<figure>_ratio`` of every smoothness figure."""
+    from clonedrive.episode.smoothness import FIGURES, smoothness_ratios
+
+    expert = expert_reference(run["track"], run["speed_mph"], laps=run["laps_target"],
+                              max_seconds=max_seconds)
+    mine, theirs = run.get("lap_time_s"), expert.get("lap_time_s")
+    return {
+        "expert": {key: expert.get(key) for key in ("lap_time_s", "smoothness", *FIGURES,
+                                                    "mean_speed_mph", "interventions")},
+        "lap_time_ratio": round(mine / theirs, 4) if mine and theirs else None,
+        **smoothness_ratios(run, expert),
+    }

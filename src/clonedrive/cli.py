@@ -23,6 +23,7 @@ VERBS: list[tuple[str, str]] = [
     ("drive", "drive"),
     ("autonomous", "autonomous"),
     ("evaluate", "evaluate"),
+    ("crosscheck", "crosscheck"),
     ("saliency", "saliency"),
     ("bench", "bench"),
     ("export", "export"),

@@ -4,6 +4,12 @@ A client on 127.0.0.1 sends the simulator's telemetry frames lock-step, as the U
 does, and times each round trip. Also times, for one frame, the parts: JPEG decode, and the
 model call by ``predict_on_batch`` (what NetworkPolicy uses) against ``model(x, training=False)``.
 
+Keras and ONNX Runtime in the same run: the model is also exported to ONNX (in memory) and
+served by a second drive server; the client alternates one message to each, so load from
+elsewhere on the machine hits both alike. ``onnx_latency_ratio`` = the ONNX Runtime server's
+median round trip / the Keras server's (target <= 0.5); ``onnx_predict_ratio`` the same for the
+model call alone. Without the onnx extra the ONNX figures are null.
+
 Run: python benchmarks/server_latency.py [MODEL.keras] [--messages 200] [--architecture seed]
 Without a model file it builds ``build_model(architecture)`` from clonedrive.model.architectures,
 or the tiny test model if that module is missing. The simulator sends ~15 messages/s, so a
@@ -63,27 +69,36 @@ def time_calls(function, repeats: int) -> list[float]:
     return times
 
 
-async def round_trips(port: int, frame: str, warmup: int, messages: int) -> list[float]:
+async def round_trips(ports: list[int], frame: str, warmup: int,
+                      messages: int) -> list[list[float]]:
+    """Round-trip times per server; one message to each server in turn (interleaved)."""
+    from contextlib import AsyncExitStack
+
     from websockets.asyncio.client import connect
 
-    url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"
-    async with connect(url, compression=None) as ws:
-        await ws.recv()  # open
-        await ws.recv()  # 40
-        times = []
+    async with AsyncExitStack() as stack:
+        sockets = []
+        for port in ports:
+            url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"
+            ws = await stack.enter_async_context(connect(url, compression=None))
+            await ws.recv()  # open
+            await ws.recv()  # 40
+            sockets.append(ws)
+        times: list[list[float]] = [[] for _ in ports]
         for index in range(warmup + messages):
-            start = time.perf_counter()
-            await ws.send(frame)
-            reply = await ws.recv()
-            elapsed = time.perf_counter() - start
-            if not reply.startswith('42["steer"') or reply == protocol.SAFE_STEER_FRAME:
-                raise RuntimeError(f"unexpected reply: {reply[:80]}")
-            if index >= warmup:
-                times.append(elapsed)
+            for server, ws in enumerate(sockets):
+                start = time.perf_counter()
+                await ws.send(frame)
+                reply = await ws.recv()
+                elapsed = time.perf_counter() - start
+                if not reply.startswith('42["steer"') or reply == protocol.SAFE_STEER_FRAME:
+                    raise RuntimeError(f"unexpected reply: {reply[:80]}")
+                if index >= warmup:
+                    times[server].append(elapsed)
         return times
 
 
-def time_parts(model, jpeg: bytes, repeats: int) -> dict[str, list[float]]:
+def time_parts(model, jpeg: bytes, repeats: int, onnx_model=None) -> dict[str, list[float]]:
     from clonedrive.keras_backend import import_keras
 
     keras = import_keras()
@@ -93,11 +108,31 @@ def time_parts(model, jpeg: bytes, repeats: int) -> dict[str, list[float]]:
     for _ in range(10):
         model.predict_on_batch(batch)
         model(batch, training=False)
-    on_batch_s, call_s = [], []
-    for _ in range(repeats):  # interleaved, so load from elsewhere hits both alike
+        if onnx_model is not None:
+            onnx_model.predict_on_batch(batch)
+    on_batch_s, call_s, onnx_s = [], [], []
+    for _ in range(repeats):  # interleaved, so load from elsewhere hits all alike
         on_batch_s += time_calls(lambda: model.predict_on_batch(batch), 1)
         call_s += time_calls(lambda: keras.ops.convert_to_numpy(model(batch, training=False)), 1)
-    return {"decode": decode_s, "predict_on_batch": on_batch_s, "call": call_s}
+        if onnx_model is not None:
+            onnx_s += time_calls(lambda: onnx_model.predict_on_batch(batch), 1)
+    return {"decode": decode_s, "predict_on_batch": on_batch_s, "call": call_s,
+            "onnx_predict": onnx_s}
+
+
+def onnx_twin(model):
+    """The model converted to ONNX and run by ONNX Runtime, or None without the onnx extra."""
+    try:
+        from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+
+        return OnnxModel(onnx_bytes(model), source="benchmark model (ONNX)")
+    except ValueError as error:  # the extra is not installed
+        print(f"no ONNX figures: {error}")
+        return None
+
+
+def median_ms(values_s: list[float]) -> float | None:
+    return round(statistics.median(values_s) * 1e3, 3) if values_s else None
 
 
 def main() -> None:
@@ -110,7 +145,6 @@ def main() -> None:
 
     from clonedrive.keras_backend import import_keras
 
-
     keras = import_keras()
 
     if args.model:
@@ -118,20 +152,28 @@ def main() -> None:
     else:
         model, name = build_default_model(args.architecture)
     jpeg = sample_jpeg()
+    onnx_model = onnx_twin(model)
 
     # The parts, for one frame, timed on a worker thread as the server runs them.
     with concurrent.futures.ThreadPoolExecutor(1) as executor:
-        parts = executor.submit(time_parts, model, jpeg, args.messages).result()
+        parts = executor.submit(time_parts, model, jpeg, args.messages, onnx_model).result()
 
-    # The whole round trip through a real socket.
-    server = DriveServer(NetworkPolicy(model, set_speed_mph=SET_SPEED_MPH), port=0,
-                         status_interval_s=0)
-    port = server.start()
+    # The whole round trip through a real socket: Keras, and ONNX Runtime, interleaved.
+    servers = [DriveServer(NetworkPolicy(served, set_speed_mph=SET_SPEED_MPH), port=0,
+                           status_interval_s=0)
+               for served in ([model] if onnx_model is None else [model, onnx_model])]
+    ports = [server.start() for server in servers]
     try:
         frame = protocol.telemetry_frame(0.0, 0.0, 5.0, jpeg)
-        trips = asyncio.run(round_trips(port, frame, args.warmup, args.messages))
+        all_trips = asyncio.run(round_trips(ports, frame, args.warmup, args.messages))
     finally:
-        server.stop()
+        for server in servers:
+            server.stop()
+    trips = all_trips[0]
+    onnx_trips = all_trips[1] if onnx_model is not None else []
+    onnx_trip_ms = median_ms(onnx_trips)
+    onnx_predict_ms = median_ms(parts["onnx_predict"])
+    keras_predict_ms = median_ms(parts["predict_on_batch"])
 
     result = {
         "model": name,
@@ -144,6 +186,13 @@ def main() -> None:
         "decode_median_ms": round(statistics.median(parts["decode"]) * 1e3, 3),
         "predict_on_batch_median_ms": round(statistics.median(parts["predict_on_batch"]) * 1e3, 3),
         "model_call_median_ms": round(statistics.median(parts["call"]) * 1e3, 3),
+        "onnx_round_trip_median_ms": onnx_trip_ms,
+        "onnx_round_trip_p99_ms": round(percentile_ms(onnx_trips, 99), 3) if onnx_trips else None,
+        "onnx_predict_median_ms": onnx_predict_ms,
+        "onnx_latency_ratio": (round(onnx_trip_ms / median_ms(trips), 3)
+                               if onnx_trip_ms is not None else None),
+        "onnx_predict_ratio": (round(onnx_predict_ms / keras_predict_ms, 3)
+                               if onnx_predict_ms is not None else None),
     }
     print(
         f"model {name} on {result['backend']}, {len(trips)} telemetry messages "
@@ -159,6 +208,15 @@ def main() -> None:
         f"  predict_on_batch   {result['predict_on_batch_median_ms']:7.2f} ms   "
         f"model(x, training=False) {result['model_call_median_ms']:7.2f} ms (one frame)"
     )
+    if onnx_model is not None:
+        print(
+            f"  ONNX Runtime: round trip median {onnx_trip_ms:7.2f} ms   p99 "
+            f"{result['onnx_round_trip_p99_ms']:7.2f} ms; model call {onnx_predict_ms:7.2f} ms"
+        )
+        print(
+            f"  onnx_latency_ratio {result['onnx_latency_ratio']:.3f} (ONNX Runtime / Keras round "
+            f"trip; target <= 0.5), onnx_predict_ratio {result['onnx_predict_ratio']:.3f}"
+        )
     print(json.dumps(result))
 
 

@@ -58,6 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="road and terrain only (no trees, rocks...)")
     parser.add_argument("--randomize", action="store_true",
                         help="domain randomisation of light, fog, colours")
+    parser.add_argument("--look", default=None, metavar="FAMILY",
+                        help="record in a look drawn (from --seed) from a condition family: "
+                             "udacity (towards the Udacity simulator's frames: road shade, line "
+                             "colour and wear, light, shadows, JPEG), or clear")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 
@@ -73,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
             offset_fraction=args.offset_fraction, header=args.header,
             relative_paths=args.relative_paths, jpeg_quality=args.jpeg_quality,
             start_time=args.start_time, scenery=not args.no_scenery, randomize=args.randomize,
+            look=args.look,
         )
         summary = record(config, args.out, progress=not args.json and sys.stderr.isatty())
     except (ValueError, TrackError) as error:

@@ -107,6 +107,8 @@ class RecordConfig:
     max_off_road_events: int = 3  #: stop early once the expert has left the road this often
     scenery: bool = True  #: trees, rocks... (False: road and terrain only)
     randomize: bool = False  #: domain randomisation of the scene's look
+    #: a condition family (sim/conditions.py, e.g. "udacity") whose look is drawn from ``seed``
+    look: str | None = None
     start_time: str | None = None  #: ISO time of the first image name; None = now (local time)
     fsync_every_rows: int = 15  #: fsync the CSV this often (and at the end); 1 = every row
     turn_curvature_per_m: float | None = None  #: turns style: record where |curvature| > this
@@ -132,6 +134,7 @@ class RecordConfig:
         if self.start_time is not None:
             datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
         self.expert_config()  # the expert's own checks (offset fraction, ...)
+        self.conditions()  # an unknown look is named
         self.episode_rules()
 
     def episode_rules(self) -> EpisodeRules:
@@ -140,6 +143,19 @@ class RecordConfig:
         return EpisodeRules(laps=self.laps, set_speed_mph=self.speed_mph, off_road="continue",
                             max_off_road_events=self.max_off_road_events,
                             max_seconds=self.seconds)
+
+    def conditions(self):
+        """The :class:`~clonedrive.sim.conditions.Conditions` of ``look`` drawn from ``seed``,
+        or None (the theme's look, or ``randomize``)."""
+        if self.look is None:
+            return None
+        from clonedrive.sim.conditions import FAMILIES, TRAINING_LOOKS
+
+        if self.look not in TRAINING_LOOKS:
+            raise ValueError(f"look {self.look!r} is not one of {', '.join(TRAINING_LOOKS)}")
+        if self.randomize:
+            raise ValueError("look and randomize are two ways of varying the look: choose one")
+        return FAMILIES[self.look].sample(self.seed)
 
     def expert_config(self) -> ExpertConfig:
         options = {}
@@ -203,7 +219,8 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
 
     rng = np.random.default_rng(config.seed)
     expert = ExpertDriver(track, config.expert_config(), rng)
-    sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize)
+    sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize,
+                           conditions=config.conditions())
     steering: list[float] = []
     skipped = 0
     first_name = last_name = None

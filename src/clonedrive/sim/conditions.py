@@ -259,7 +259,19 @@ FAMILIES: dict[str, ConditionFamily] = {family.name: family for family in (
             camera_pitch_deg=(-2.5, 2.5), jpeg_quality=(25, 50), pixel_noise_std=(3.0, 8.0)),
     _family("latency", "the car applies each decision 1-3 control steps late",
             held_out=True, latency_steps=(1, 3)),
+    # Training data that looks more like the Udacity simulator's frames (issue 15; compared
+    # against the real slices in ../shared/fixtures by `clonedrive crosscheck`): its roads
+    # are darker or lighter grey with yellow, white or worn lines, its light brighter or
+    # duller, its shadows softer or harder, its frames JPEG 60-90.
+    _family("udacity", "towards the Udacity simulator's look: road shade, line colour and "
+            "wear, light, warmth, shadows, vegetation, JPEG", road_brightness=(0.75, 1.25),
+            line=("yellow", "white", "faded-white"), road_wear=(0.0, 0.6),
+            sun_elevation_deg=(25.0, 75.0), sun_azimuth_deg=(0.0, 360.0), light=(0.8, 1.25),
+            warmth=(-0.1, 0.2), shadows=(0.5, 1.4), vegetation=(0.6, 1.6),
+            jpeg_quality=(60, 90), pixel_noise_std=(0.0, 3.0)),
 )}
+#: The families a recording may be made in (``record --look NAME``): those not held out.
+TRAINING_LOOKS = tuple(name for name, family in FAMILIES.items() if not family.held_out)
 
 
 def fog_alpha(height: int, *, vertical_fov_deg: float, pitch_down_deg: float,

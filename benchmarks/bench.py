@@ -20,10 +20,11 @@ from pathlib import Path
 
 
 def main() -> int:
-    from clonedrive.bench.pool import default_workers, run_tasks
+    from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.run import BenchConfig, plan_tasks
     from clonedrive.bench.suite import load_suite
     from clonedrive.model.architectures import build_model
+    from clonedrive.workers import default_workers, run_tasks
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workers", type=int, default=default_workers())
@@ -41,7 +42,7 @@ def main() -> int:
         figures, results = {}, {}
         for workers in (1, args.workers):
             start = time.perf_counter()
-            results[workers] = run_tasks(tasks, workers=workers)
+            results[workers] = run_tasks(drive_batch, tasks, workers=workers)
             figures[workers] = episodes / (time.perf_counter() - start)
             print(f"{workers} worker(s): {episodes} episodes of {args.seconds:g} s in "
                   f"{episodes / figures[workers]:.1f} s: {figures[workers]:.3f} episodes/s")

@@ -5,10 +5,11 @@ import json
 
 import pytest
 
-from clonedrive.bench.pool import run_tasks
+from clonedrive.bench.driving import drive_batch
 from clonedrive.bench.run import BenchConfig, bench, plan_tasks
 from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
 from clonedrive.bench.suite import load_suite
+from clonedrive.workers import run_tasks
 
 SUITE = """
 id = "tiny"
@@ -96,10 +97,10 @@ def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):
     config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=1,
                          max_seconds=3.0, scenery=False)
     tasks, _ = plan_tasks(load_suite(config.suite), config)
-    local = run_tasks(tasks, workers=2)
+    local = run_tasks(drive_batch, tasks, workers=2)
     ray.init(num_cpus=2, include_dashboard=False)
     try:
-        distributed = run_tasks(tasks, ray="local")
+        distributed = run_tasks(drive_batch, tasks, ray="local")
     finally:
         ray.shutdown()
     assert json.dumps(local, sort_keys=True) == json.dumps(distributed, sort_keys=True)

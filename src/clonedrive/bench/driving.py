@@ -1,6 +1,6 @@
 """What a bench worker does: drive one batch of a suite's episodes in lock-step.
 
-:func:`drive_batch` runs in a worker process of :mod:`clonedrive.bench.pool`. A **model batch**
+:func:`drive_batch` runs in a worker process of :mod:`clonedrive.workers`. A **model batch**
 loads the model once and drives its episodes through the episode runner
 (:mod:`clonedrive.episode`) in lock-step, their frames batched through the network; each car
 has its episode's conditions (sim/conditions.py), its own PI speed controller and, under a

@@ -2,7 +2,7 @@
 
 :func:`bench` cuts the suite's episodes into batches (``batch`` episodes of one model each,
 driven in lock-step by one worker), adds the expert's reference laps (one per track and speed
-cap), runs them all on the worker pool (:mod:`clonedrive.bench.pool`), scores every run against
+cap), runs them all on the worker pool (:mod:`clonedrive.workers`), scores every run against
 its reference (:mod:`clonedrive.bench.scores`) and writes, under ``out``:
 
 - ``bench.json``: the suite (id, splits, conditions), the settings, every run with its scores,
@@ -109,9 +109,10 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
 
 def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) -> dict:
     """Run the benchmark and write its files; returns bench.json's content."""
+    from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.leaderboard import write_leaderboard
-    from clonedrive.bench.pool import default_workers, run_tasks
     from clonedrive.progress import progress_bar
+    from clonedrive.workers import default_workers, run_tasks
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -143,7 +144,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         write_json_atomic(out / "bench.json", report)
 
     try:
-        run_tasks(tasks, workers=workers, ray=config.ray, on_done=on_done)
+        run_tasks(drive_batch, tasks, workers=workers, ray=config.ray, on_done=on_done)
     finally:
         bar.close()
     if config.offline_data:

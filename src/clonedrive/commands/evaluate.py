@@ -39,6 +39,9 @@ def add_arguments(parser) -> None:
                         help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=8,
                         help="runs driven in lock-step with their frames batched")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="worker processes the runs are spread over, each driving its share "
+                             "in lock-step (default: one per CPU core)")
     parser.add_argument("--out", default=None,
                         help="output folder (default: eval/ beside the model)")
     parser.add_argument("--json", action="store_true", help="print eval.json's content")
@@ -68,7 +71,7 @@ def run(args) -> int:
                             laps=args.laps, unseen=args.unseen,
                             unseen_speed_mph=args.unseen_speed, video=args.video,
                             slow_in_curves=args.slow_in_curves, batch=args.batch,
-                            video_saliency=args.video_saliency)
+                            video_saliency=args.video_saliency, workers=args.workers)
     except ValueError as error:  # --speed nan, -5, 31...
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -83,7 +86,8 @@ def run(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    report = evaluate(policy, config, out, progress=not args.json, model_path=str(args.model))
+    report = evaluate(policy, config, out, progress=not args.json, model_path=str(args.model),
+                      model_options={"trust": args.trust_model, "runtime": args.runtime})
     if args.json:
         print(json.dumps(report, indent=2))
     else:

@@ -59,6 +59,9 @@ class EvalConfig:
     slow_in_curves: bool = False  #: target speed falls as the predicted steering grows
     scenery: bool = True
     batch: int = 8  #: runs driven in lock-step (their frames batched through the network)
+    #: worker processes the runs are spread over (None: one per CPU core); each drives its
+    #: share of the runs in lock-step. Needs the model's file; 1 drives in this process.
+    workers: int | None = None
     time_limit_factor: float = TIME_LIMIT_FACTOR  #: stop after this x the laps' time at set speed
     max_seconds: float | None = None  #: cap on simulated time per run (quick checks)
     #: Each run also gets the expert's figures on the same track and cap, and the ratios
@@ -75,6 +78,8 @@ class EvalConfig:
             _check_speed("each set speed", speed)
         if self.unseen_speed_mph is not None:
             _check_speed("unseen_speed_mph", self.unseen_speed_mph)
+        if self.workers is not None and self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
         for name in ("laps", "batch"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -154,14 +159,20 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
 
 
 def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool = True,
-             model_path: str | None = None) -> dict:
+             model_path: str | None = None, model_options: dict | None = None) -> dict:
     """Drive every run of ``config`` with ``policy`` (a NetworkPolicy) and write the results.
 
     Writes ``config.json``, ``eval.json`` (again after each finished run), a map PNG per run,
     off-road frames and (with ``video``) an mp4 per built-in-track run, under ``out_dir``.
     Returns the final eval.json content.
+
+    With several workers (``config.workers``, default one per CPU core) and the model's file
+    (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.network.load_policy`'s
+    ``trust`` and ``runtime``), the runs are cut into groups before anything drives, and each
+    group is driven in lock-step in a fresh worker process that loads the model itself.
     """
     from clonedrive.progress import progress_bar
+    from clonedrive.workers import default_workers, run_tasks
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -183,26 +194,68 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
     save_config(config, out / "config.json")
     finished: dict[int, dict] = {}
 
-    def publish(run: _Run) -> None:
+    def publish(index: int, result: dict) -> None:
         if config.expert_reference:
-            run.result.update(against_expert(run.result, max_seconds=config.max_seconds))
-        finished[run.index] = run.result
-        report["runs"] = [finished[index] for index in sorted(finished)]
+            result.update(against_expert(result, max_seconds=config.max_seconds))
+        finished[index] = result
+        report["runs"] = [finished[i] for i in sorted(finished)]
         report["totals"] = _totals(report["runs"])
         report["complete"] = len(finished) == len(specs)
         write_json_atomic(out / "eval.json", report)
 
-    total_steps = sum(_expected_steps(spec, config) for spec in specs)
-    bar = progress_bar(total=total_steps, unit="step", desc="evaluate", enabled=progress)
-    taken: set[str] = set()
-    batch = max(1, config.batch)
+    names = _run_names(specs)
+    workers = config.workers or default_workers()
+    if model_path is None:
+        workers = 1  # an in-memory model cannot be loaded by another process
+    size = max(1, min(config.batch, math.ceil(len(specs) / workers)))
+    groups = [list(enumerate(specs[start:start + size], start=start))
+              for start in range(0, len(specs), size)]
+    expected = [sum(_expected_steps(spec, config) for _, spec in group) for group in groups]
+    bar = progress_bar(total=sum(expected), unit="step", desc="evaluate", enabled=progress)
     try:
-        for start in range(0, len(specs), batch):
-            group = list(enumerate(specs[start:start + batch], start=start))
-            _drive_group(policy, group, config, out, taken, bar, publish)
+        if workers == 1 or len(groups) == 1:
+            for group in groups:
+                _drive_group(policy, group, names, config, out, bar, publish)
+        else:
+            tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
+                      "group": group, "names": names, "config": config, "out": str(out)}
+                     for group in groups]
+
+            def on_done(task: int, results: list[tuple[int, dict]]) -> None:
+                for index, result in results:
+                    publish(index, result)
+                bar.update(expected[task])
+
+            run_tasks(_drive_group_task, tasks, workers=workers, on_done=on_done)
     finally:
         bar.close()
     return report
+
+
+def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
+    """A worker's share of an evaluation: load the model, drive the group, return results."""
+    from clonedrive.drivers.network import load_policy
+
+    config: EvalConfig = task["config"]
+    policy = load_policy(task["model_path"], slow_in_curves=config.slow_in_curves,
+                         **task["model_options"])
+    results: list[tuple[int, dict]] = []
+    _drive_group(policy, task["group"], task["names"], config, Path(task["out"]), None,
+                 lambda index, result: results.append((index, result)))
+    return results
+
+
+def _run_names(specs: list[RunSpec]) -> list[str]:
+    """Each run's file-name stem, fixed before any run drives (so workers cannot clash)."""
+    from clonedrive.world.catalog import load_track
+
+    taken: set[str] = set()
+    names = []
+    for spec in specs:
+        name = run_name(load_track(spec.track).name, spec.speed_mph, taken)
+        taken.add(name)
+        names.append(name)
+    return names
 
 
 def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
@@ -215,8 +268,7 @@ def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
     return int(seconds * 15)
 
 
-def _open_run(index: int, spec: RunSpec, config: EvalConfig, out: Path, taken: set[str]
-              ) -> _Run:
+def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery))
@@ -225,8 +277,6 @@ def _open_run(index: int, spec: RunSpec, config: EvalConfig, out: Path, taken: s
                              max_seconds=config.max_seconds,
                              time_limit_factor=config.time_limit_factor)
         episode = Episode(sim, rules, track=spec.track, seed=0)
-        name = run_name(sim.track.name, spec.speed_mph, taken)
-        taken.add(name)
         run = _Run(index=index, spec=spec, episode=episode, name=name)
         if config.video and not spec.unseen:
             from clonedrive.evaluate.video import VideoWriter
@@ -238,14 +288,14 @@ def _open_run(index: int, spec: RunSpec, config: EvalConfig, out: Path, taken: s
     return run
 
 
-def _drive_group(policy, group: list[tuple[int, RunSpec]], config: EvalConfig, out: Path,
-                 taken: set[str], bar, publish) -> None:
+def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
+                 config: EvalConfig, out: Path, bar, publish) -> None:
     from clonedrive.episode.drivers import NetworkDriver
 
     runs: list[_Run] = []
     try:
         for index, spec in group:
-            runs.append(_open_run(index, spec, config, out, taken))
+            runs.append(_open_run(index, spec, names[index], config, out))
         if config.video_saliency and any(run.video is not None for run in runs):
             from clonedrive.model.saliency import VisualBackProp
 
@@ -261,10 +311,11 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], config: EvalConfig, o
         def on_step(step: Step) -> None:
             run = runs[step.car]
             _record_step(run, step, out)
-            bar.update(1)
+            if bar is not None:
+                bar.update(1)
             if step.stopped is not None:
                 run.result = _finish(run, out)
-                publish(run)
+                publish(run.index, run.result)
 
         runner.run(on_step)
     finally:

@@ -1,9 +1,11 @@
-"""The worker pool: batches of episodes spread over processes, or over a Ray cluster.
+"""The worker pool: tasks spread over processes, or over a Ray cluster.
 
-A **task** is one batch of episodes that one worker drives in lock-step
-(:func:`clonedrive.bench.driving.drive_batch`). :func:`run_tasks` runs a list of tasks on
-``workers`` local processes, or as Ray tasks (``ray="auto"`` or a cluster address; ``"local"``
-starts a local Ray instance), and returns their results in task order.
+A **task** is one piece of work for a module-level ``function(task)`` (picklable by name):
+a batch of benchmark episodes driven in lock-step (:func:`clonedrive.bench.driving.drive_batch`),
+a group of evaluation runs (:mod:`clonedrive.evaluate.rollout`), one recording of the demo.
+:func:`run_tasks` runs a list of tasks on ``workers`` local processes, or as Ray tasks
+(``ray="auto"`` or a cluster address; ``"local"`` starts a local Ray instance), and returns
+their results in task order. It sits in the bottom layer and imports nothing of clonedrive.
 
 Why results are identical with 1 worker, N workers and Ray: the batches are cut from the
 episode list before anything runs (never by which worker is free), every batch runs in a
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from typing import Any
 
 #: Environment set in every worker before NumPy/PyTorch load: one compute thread each.
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
@@ -37,26 +40,21 @@ def _init_worker() -> None:
     os.environ.update(_WORKER_ENV)
 
 
-def _run_task(task: dict) -> list[dict]:
-    from clonedrive.bench.driving import drive_batch
-
-    return drive_batch(task)
-
-
-def _run_ray_task(task: dict) -> list[dict]:
+def _run_ray_task(function: Callable[[Any], Any], task: Any) -> Any:
     _init_worker()
-    return _run_task(task)
+    return function(task)
 
 
-def run_tasks(tasks: Sequence[dict], *, workers: int | None = None, ray: str | None = None,
-              on_done: Callable[[int, list[dict]], None] | None = None) -> list[list[dict]]:
-    """Run ``tasks`` (batches for :func:`~clonedrive.bench.driving.drive_batch`); results in
+def run_tasks(function: Callable[[Any], Any], tasks: Sequence[Any], *,
+              workers: int | None = None, ray: str | None = None,
+              on_done: Callable[[int, Any], None] | None = None) -> list[Any]:
+    """``[function(task) for task in tasks]``, each call in a fresh worker process; results in
     task order. ``on_done(index, result)`` is called as each task finishes (in task order)."""
     tasks = list(tasks)
     if not tasks:
         return []
     if ray is not None:
-        return _run_on_ray(tasks, ray, workers, on_done)
+        return _run_on_ray(function, tasks, ray, workers, on_done)
     import multiprocessing
 
     workers = default_workers() if workers is None else int(workers)
@@ -66,15 +64,15 @@ def run_tasks(tasks: Sequence[dict], *, workers: int | None = None, ray: str | N
     results = []
     with context.Pool(processes=min(workers, len(tasks)), initializer=_init_worker,
                       maxtasksperchild=1) as pool:
-        for index, result in enumerate(pool.imap(_run_task, tasks)):
+        for index, result in enumerate(pool.imap(function, tasks)):
             results.append(result)
             if on_done is not None:
                 on_done(index, result)
     return results
 
 
-def _run_on_ray(tasks: list[dict], address: str, workers: int | None,
-                on_done: Callable[[int, list[dict]], None] | None) -> list[list[dict]]:
+def _run_on_ray(function: Callable[[Any], Any], tasks: list[Any], address: str,
+                workers: int | None, on_done: Callable[[int, Any], None] | None) -> list[Any]:
     try:
         import ray
     except ImportError:
@@ -87,7 +85,7 @@ def _run_on_ray(tasks: list[dict], address: str, workers: int | None,
             ray.init(address=address, runtime_env={"env_vars": _WORKER_ENV},
                      log_to_driver=False)
     remote = ray.remote(num_cpus=1, max_calls=1)(_run_ray_task)
-    pending = [remote.remote(task) for task in tasks]
+    pending = [remote.remote(function, task) for task in tasks]
     results = []
     for index, ref in enumerate(pending):
         result = ray.get(ref)

@@ -26,6 +26,7 @@ VERBS: list[tuple[str, str]] = [
     ("crosscheck", "crosscheck"),
     ("saliency", "saliency"),
     ("bench", "bench"),
+    ("dagger", "dagger"),
     ("export", "export"),
     ("video", "video"),
     ("report", "report"),

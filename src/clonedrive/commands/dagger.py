@@ -1,0 +1,87 @@
+"""``clonedrive dagger``: DAgger -- the network drives, the expert labels, retrain, repeat."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+HELP = "DAgger: the network drives (mixed with the expert), the expert labels, retrain, repeat"
+DESCRIPTION = (
+    "Start from a training run (clonedrive train --out BASE) and iterate DAgger (Ross, Gordon & "
+    "Bagnell 2011): each iteration the network drives the collection tracks, mixed with the "
+    "expert (its share beta decays per iteration), with a safety takeover by the expert when "
+    "the car is about to leave the road (counted); the expert labels every frame with its "
+    "steering and target speed; the frames are saved as Udacity-format recordings, aggregated "
+    "with the base data, and the network is retrained from its previous weights and evaluated "
+    "in closed loop. Plain cloning with as many extra expert labels is trained and evaluated "
+    "for comparison. Writes iter_NN/{data,train,eval}/, plain/, dagger.json and dagger.png."
+)
+
+
+def add_arguments(parser) -> None:
+    from clonedrive.dagger import DaggerConfig
+
+    d = DaggerConfig()
+    parser.add_argument("base", help="training run folder (model.keras, config.json, "
+                                     "recipe.toml) to start from")
+    parser.add_argument("--out", required=True, help="folder to write (reused when re-run)")
+    parser.add_argument("--iterations", type=int, default=d.iterations)
+    parser.add_argument("--beta", type=float, default=d.beta,
+                        help="share of steps the expert drives in iteration 1")
+    parser.add_argument("--beta-decay", type=float, default=d.beta_decay,
+                        help="beta is multiplied by this each iteration")
+    parser.add_argument("--track", action="append", default=None, metavar="NAME",
+                        help=f"collection track (repeatable; default {' '.join(d.tracks)})")
+    parser.add_argument("--laps", type=int, default=d.laps, help="laps per track and iteration")
+    parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
+                        help="set speed (a cap) for collecting and evaluating")
+    parser.add_argument("--epochs", type=int, default=d.epochs,
+                        help="training epochs per iteration, from the previous weights")
+    parser.add_argument("--lr", dest="learning_rate", type=float, default=d.learning_rate)
+    parser.add_argument("--eval-track", action="append", default=None, metavar="NAME",
+                        help=f"evaluation track (repeatable; default {' '.join(d.eval_tracks)})")
+    parser.add_argument("--eval-laps", type=int, default=d.eval_laps)
+    parser.add_argument("--unseen", type=int, default=d.eval_unseen, metavar="N",
+                        help="also evaluate on N generated tracks never collected on")
+    parser.add_argument("--bench-split", action="append", default=None, metavar="SPLIT",
+                        help="evaluate each iteration on this benchmark split (repeatable; "
+                             "default: the --eval-track and --unseen tracks with evaluate)")
+    parser.add_argument("--suite", default=d.bench_suite, help="benchmark suite (--bench-split)")
+    parser.add_argument("--workers", type=int, default=d.workers,
+                        help="bench worker processes")
+    parser.add_argument("--no-plain", dest="plain", action="store_false",
+                        help="skip the plain-cloning comparison")
+    parser.add_argument("--max-seconds", type=float, default=None,
+                        help="cap on simulated seconds per episode (quick runs)")
+    parser.add_argument("--no-scenery", dest="scenery", action="store_false")
+    parser.add_argument("--seed", type=int, default=d.seed)
+    parser.add_argument("--json", action="store_true", help="print dagger.json's content")
+
+
+def run(args) -> int:
+    from clonedrive.dagger import DaggerConfig, format_table, run_dagger
+    from clonedrive.world.catalog import load_track
+    from clonedrive.world.track import TrackError
+
+    d = DaggerConfig()
+    try:
+        config = DaggerConfig(
+            iterations=args.iterations, beta=args.beta, beta_decay=args.beta_decay,
+            tracks=tuple(args.track or d.tracks), laps=args.laps, speed_mph=args.speed,
+            epochs=args.epochs, learning_rate=args.learning_rate,
+            eval_tracks=tuple(args.eval_track or d.eval_tracks), eval_laps=args.eval_laps,
+            eval_unseen=args.unseen, bench_suite=args.suite,
+            bench_splits=tuple(args.bench_split or ()), workers=args.workers, plain=args.plain,
+            max_seconds=args.max_seconds,
+            scenery=args.scenery, seed=args.seed)
+        for name in (*config.tracks, *config.eval_tracks):
+            load_track(name)
+        report = run_dagger(config, args.base, args.out, progress=not args.json)
+    except (ValueError, FileNotFoundError, TrackError) as error:
+        print(f"clonedrive dagger: {error}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(format_table(report))
+    return 0

@@ -1,0 +1,93 @@
+"""DAgger: the mixed driver with its safety takeover, and one whole (tiny) iteration with the
+plain-cloning comparison, end to end on real rendering and real training."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import keras
+import numpy as np
+import pytest
+
+from clonedrive.cli import main
+from clonedrive.dagger import DaggerConfig, MixedDriver
+from clonedrive.data.driving_log import read_driving_log
+from clonedrive.data.recorder import RecordConfig, record
+from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.episode.rules import EpisodeRules
+from clonedrive.episode.runner import Episode, Runner
+from clonedrive.model.train import TrainConfig, train
+from clonedrive.sim.simulator import SimConfig, Simulator
+
+
+def steer_right_model():
+    """Steers right whatever it sees: off the road within seconds."""
+    inputs = keras.Input(shape=(160, 320, 3))
+    x = keras.layers.GlobalAveragePooling2D()(inputs)
+    dense = keras.layers.Dense(1, name="steering")
+    model = keras.Model(inputs, dense(x))
+    dense.set_weights([np.zeros((3, 1), np.float32), np.array([0.3], np.float32)])
+    return model
+
+
+def drive_mixed(beta: float, seconds: float = 12.0):
+    with Simulator("lake", SimConfig(cameras=("center",), scenery=False)) as sim:
+        episode = Episode(sim, EpisodeRules(laps=1, set_speed_mph=15.0, max_seconds=seconds))
+        driver = MixedDriver(NetworkPolicy(steer_right_model()),
+                             [ExpertDriver(sim.track, ExpertConfig(speed_mph=15.0))], [15.0],
+                             beta=beta, rng=np.random.default_rng(0))
+        who = []
+        Runner([episode], driver).run(lambda step: who.append(step.decision.detail))
+        return driver, episode, who
+
+
+def test_the_safety_takeover_keeps_a_bad_network_on_the_road_and_is_counted() -> None:
+    driver, episode, who = drive_mixed(beta=0.0)
+    assert episode.trace.summary()["interventions"] == 0  # never left the road
+    assert driver.takeovers[0] >= 2  # it tried to, again and again: each one counted
+    assert set(who) == {"network", "takeover"}
+    assert driver.steps_by[0]["takeover"] == who.count("takeover")
+
+
+def test_beta_one_is_the_expert_driving() -> None:
+    driver, episode, who = drive_mixed(beta=1.0, seconds=4.0)
+    assert set(who) == {"expert"} and driver.takeovers == [0]
+
+
+def test_config_is_validated() -> None:
+    with pytest.raises(ValueError, match="beta"):
+        DaggerConfig(beta=1.5)
+    with pytest.raises(ValueError, match="iterations"):
+        DaggerConfig(iterations=0)
+    assert DaggerConfig(beta=0.5, beta_decay=0.5).beta_at(3) == pytest.approx(0.125)
+
+
+def test_one_dagger_iteration_end_to_end(tmp_path: Path, capsys) -> None:
+    data = tmp_path / "expert"
+    record(RecordConfig(track="lake", seconds=3.0, speed_mph=15.0, scenery=False,
+                        start_time="2026-11-21T10:11:12.345"), data, progress=False)
+    base = tmp_path / "base"
+    train(TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
+                      speed_head=True, export_h5=False), [data], base, progress=False)
+    out = tmp_path / "dagger"
+    code = main(["dagger", str(base), "--out", str(out), "--iterations", "1", "--track", "lake",
+                 "--eval-track", "lake", "--unseen", "0", "--epochs", "1", "--speed", "15",
+                 "--max-seconds", "3", "--no-scenery"])
+    assert code == 0
+    report = json.loads((out / "dagger.json").read_text())
+    base_row, first = report["iterations"]
+    assert base_row["iteration"] == 0 and first["iteration"] == 1 and first["beta"] == 0.5
+    # The expert labelled every visited frame: a Udacity log plus its target speeds.
+    log = read_driving_log(out / "iter_01" / "data" / "lake")
+    assert len(log.rows) == first["labels"] == 45  # 3 s at 15 Hz
+    assert all(row.target_speed_mph is not None for row in log.rows)
+    assert first["collect"]["takeovers_per_km"] is not None
+    assert (out / "iter_01" / "train" / "model.keras").is_file()
+    assert first["eval"]["builtin"]["runs"] == 1
+    # Plain cloning got as many extra expert labels.
+    plain = report["plain"]
+    assert plain["labels_total"] == first["labels_total"] == 45
+    assert (out / "dagger.png").is_file()
+    assert "plain" in capsys.readouterr().out

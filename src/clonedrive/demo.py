@@ -43,12 +43,15 @@ class DemoConfig:
     model: str = "fast"  #: architecture: fast trains in minutes on 2 CPU cores
     video: bool = True  #: mp4s of the built-in-track runs
     seed: int = 0
+    workers: int | None = None  #: processes recording and evaluation use (None: one per core)
 
     def __post_init__(self) -> None:
         if self.epochs is not None and (isinstance(self.epochs, bool) or self.epochs < 1):
             raise ValueError(f"epochs must be at least 1, got {self.epochs}")
         if self.unseen is not None and (isinstance(self.unseen, bool) or self.unseen < 0):
             raise ValueError(f"unseen must be >= 0, got {self.unseen}")
+        if self.workers is not None and (isinstance(self.workers, bool) or self.workers < 1):
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
         if self.model not in DEMO_MODELS:
             raise ValueError(f"model must be one of {', '.join(DEMO_MODELS)}, got {self.model!r}")
 
@@ -98,29 +101,36 @@ def demo_plan(config: DemoConfig):
                             learning_rate=1e-3, seed=config.seed)
         evaluation = EvalConfig(tracks=("lake",), speeds_mph=(15.0,), laps=1,
                                 unseen=config.unseen or 0, video=config.video,
-                                max_seconds=10.0, slow_in_curves=True)
+                                max_seconds=10.0, slow_in_curves=True,
+                                workers=config.workers)
     else:
         recordings = DEFAULT_RECORDINGS
         train = TrainConfig(model=config.model, epochs=config.epochs or 8, batch_size=128,
                             learning_rate=1e-3, seed=config.seed)
         evaluation = EvalConfig(tracks=(), speeds_mph=(), laps=2, video=config.video,
                                 unseen=10 if config.unseen is None else config.unseen,
-                                unseen_speed_mph=20.0, unseen_laps=1, slow_in_curves=True)
+                                unseen_speed_mph=20.0, unseen_laps=1, slow_in_curves=True,
+                                workers=config.workers)
     return recordings, train, evaluation
 
 
-def _record_stage(recordings, data_dir: Path, seed: int, progress: bool) -> list[dict]:
+def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
+                  workers: int | None = None) -> list[dict]:
+    """Record what is not recorded yet, the recordings spread over worker processes (each
+    recording is seeded by its place in the list, so the data do not depend on the workers)."""
     from clonedrive.data.driving_log import read_driving_log
-    from clonedrive.data.recorder import RecordConfig, record
+    from clonedrive.data.recorder import RecordConfig
+    from clonedrive.workers import default_workers, run_tasks
 
-    done = []
+    done: dict[int, dict] = {}
+    tasks = []
     for index, spec in enumerate(recordings):
         out = data_dir / spec.name
         if (out / "driving_log.csv").is_file():
             rows = len(read_driving_log(out, verify_images="none").rows)
             if rows > 0:
                 _say(progress, f"[record] {spec.name}: {rows} rows already recorded, reused")
-                done.append({"name": spec.name, "rows": rows, "reused": True})
+                done[index] = {"name": spec.name, "rows": rows, "reused": True}
                 continue
         options = {}
         if spec.turn_curvature_per_m is not None:
@@ -130,13 +140,33 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool) -> list
                                      noise=spec.noise, seconds=spec.seconds,
                                      seed=seed + index, start_time="2026-01-01T12:00:00",
                                      **options)
-        _say(progress, f"[record] {spec.name}: {spec.track} {spec.style}"
-                       f"{' reversed' if spec.reverse else ''}, {spec.laps} lap(s) "
-                       f"at up to {spec.speed_mph:g} mph")
-        summary = record(record_config, out, progress=progress)
-        done.append({"name": spec.name, "rows": summary.rows,
-                     "off_road_events": summary.off_road_events, "reused": False})
-    return done
+        tasks.append({"index": index, "name": spec.name, "config": record_config,
+                      "out": str(out)})
+    workers = workers or default_workers()
+    if tasks:
+        _say(progress, f"[record] {len(tasks)} recording(s) on {min(workers, len(tasks))} "
+                       "worker process(es): " + ", ".join(task["name"] for task in tasks))
+
+    def on_done(_: int, result: dict) -> None:
+        done[result.pop("index")] = result
+        _say(progress, f"[record] {result['name']}: {result['rows']} rows "
+                       f"({result['off_road_events']} off-road events)")
+
+    if workers == 1:
+        for task in tasks:
+            on_done(0, _record_task(task))
+    else:
+        run_tasks(_record_task, tasks, workers=workers, on_done=on_done)
+    return [done[index] for index in sorted(done)]
+
+
+def _record_task(task: dict) -> dict:
+    """One recording of the demo (in a worker process of :mod:`clonedrive.workers`)."""
+    from clonedrive.data.recorder import record
+
+    summary = record(task["config"], task["out"], progress=False)
+    return {"index": task["index"], "name": task["name"], "rows": summary.rows,
+            "off_road_events": summary.off_road_events, "reused": False}
 
 
 def _recipe_text(recordings, data_dir: Path) -> str:
@@ -173,7 +203,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
         write_json_atomic(out / "demo.json", summary)
 
     t0 = time.perf_counter()
-    recorded = _record_stage(recordings, out / "data", config.seed, progress)
+    recorded = _record_stage(recordings, out / "data", config.seed, progress, config.workers)
     stage("record", time.perf_counter() - t0, recordings=recorded,
           rows=sum(r["rows"] for r in recorded))
 

@@ -30,6 +30,9 @@ def add_arguments(parser) -> None:
                         help="network architecture")
     parser.add_argument("--no-video", dest="video", action="store_false", default=defaults.video,
                         help="skip the mp4s")
+    parser.add_argument("--workers", type=int, default=defaults.workers,
+                        help="worker processes for recording and evaluation (default: one per "
+                             "CPU core)")
     parser.add_argument("--seed", type=int, default=defaults.seed,
                         help="seeds recording and training")
 
@@ -39,7 +42,8 @@ def run(args) -> int:
 
     try:
         config = DemoConfig(quick=args.quick, epochs=args.epochs, unseen=args.unseen,
-                            model=args.model, video=args.video, seed=args.seed)
+                            model=args.model, video=args.video, seed=args.seed,
+                            workers=args.workers)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -107,7 +107,8 @@ def demo_plan(config: DemoConfig):
         recordings = DEFAULT_RECORDINGS
         train = TrainConfig(model=config.model, epochs=config.epochs or 8, batch_size=128,
                             learning_rate=1e-3, seed=config.seed)
-        evaluation = EvalConfig(tracks=(), speeds_mph=(), laps=2, video=config.video,
+        # The base of _evaluation_groups (which sets each group's tracks and speeds).
+        evaluation = EvalConfig(tracks=(), speeds_mph=(20.0,), laps=2, video=config.video,
                                 unseen=10 if config.unseen is None else config.unseen,
                                 unseen_speed_mph=20.0, unseen_laps=1, slow_in_curves=True,
                                 workers=config.workers)

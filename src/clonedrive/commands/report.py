@@ -15,7 +15,8 @@ DESCRIPTION = (
     "and each off-road event with the frame the car saw). RUN_DIR may hold data/ (recordings), "
     "train/ (or model.keras itself), eval/ (eval.json) and demo.json; a missing piece leaves a "
     "one-line note in its section. Writes OUT/report.md with its figures in OUT/report/, and "
-    "OUT/report.html with the figures embedded (one file to send)."
+    "OUT/report.html with the figures embedded (one file to send). With --real-log, a section "
+    "checks the model open loop on recorded Udacity logs (clonedrive crosscheck)."
 )
 
 
@@ -28,6 +29,9 @@ def add_arguments(parser) -> None:
                         help="folder for report.md, report.html and report/ (default: RUN_DIR)")
     parser.add_argument("--max-failures", type=int, default=defaults.max_failures, metavar="N",
                         help="off-road events shown with their frames")
+    parser.add_argument("--real-log", action="append", default=[], metavar="LOG_DIR",
+                        help="also check the model open loop on this recorded Udacity log "
+                             "(repeatable; see clonedrive crosscheck)")
     parser.add_argument("--json", action="store_true",
                         help="no progress bar; print one JSON object with the written paths")
 
@@ -39,7 +43,8 @@ def run(args) -> int:
         print(f"error: run folder {args.run_dir} does not exist", file=sys.stderr)
         return 2
     try:
-        config = ReportConfig(max_failures=args.max_failures)
+        config = ReportConfig(max_failures=args.max_failures,
+                              real_logs=tuple(str(log) for log in args.real_log))
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

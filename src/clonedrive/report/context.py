@@ -39,6 +39,8 @@ SECTION_TITLES = {
     "results": "5. Closed-loop results",
     "timings": "6. Run timings",
 }
+#: Sections only in the report when asked for (``report --real-log``).
+OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)"}
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,8 @@ class ReportConfig:
     max_failures: int = 12  #: off-road events shown with their frames
     stills_per_video: int = 3  #: frames taken from each evaluation video
     seed: int = 0  #: the random augmentation example's generator seed
+    #: recorded Udacity logs to check the model on, open loop (report --real-log)
+    real_logs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.max_failures < 0:

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from clonedrive.config import write_text_atomic
 from clonedrive.report.context import (
+    OPTIONAL_SECTION_TITLES,
     SECTION_TITLES,
     ReportConfig,
     ReportContext,
@@ -41,7 +42,16 @@ from clonedrive.report.context import (
     find_run_parts,
 )
 from clonedrive.report.document import Document, Section, to_html, to_markdown
-from clonedrive.report.sections import balance, data, intro, network, results, timings, training
+from clonedrive.report.sections import (
+    balance,
+    data,
+    intro,
+    network,
+    realdata,
+    results,
+    timings,
+    training,
+)
 
 __all__ = ["SECTION_TITLES", "ReportConfig", "ReportResult", "RunParts", "find_run_parts",
            "write_report"]
@@ -57,6 +67,7 @@ SECTIONS: tuple[tuple[str, Callable[[ReportContext], list[Section]]], ...] = (
     ("network", network.build),
     ("training", training.build),
     ("results", results.build),
+    ("realdata", realdata.build),
     ("timings", timings.build),
 )
 
@@ -87,7 +98,8 @@ def write_report(run_dir: str | os.PathLike, out_dir: str | os.PathLike | None =
     bar = progress_bar(total=len(SECTIONS), desc="report", unit="section", enabled=progress)
     try:
         for key, build in SECTIONS:
-            document.sections += context.guarded(SECTION_TITLES[key], build)
+            title = SECTION_TITLES.get(key) or OPTIONAL_SECTION_TITLES[key]
+            document.sections += context.guarded(title, build)
             bar.update(1)
     finally:
         bar.close()

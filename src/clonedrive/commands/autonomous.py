@@ -5,8 +5,6 @@ from __future__ import annotations
 import json
 import sys
 
-from clonedrive.udacity_spec import PORT
-
 HELP = "let a drive server (clonedrive drive, or Udacity's drive.py) steer our simulated car"
 DESCRIPTION = (
     "Run the simulator headless in autonomous mode: connect to a drive server at "
@@ -18,14 +16,24 @@ DESCRIPTION = (
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--track", default="lake", help="lake, mountain, gen:<seed> or a .json")
-    parser.add_argument("--laps", type=int, default=1, help="laps to drive")
-    parser.add_argument("--host", default="127.0.0.1", help="drive server host")
-    parser.add_argument("--port", type=int, default=PORT, help="drive server port")
-    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="SECONDS",
-                        help="keep retrying to reach the drive server this long (default 30)")
-    parser.add_argument("--max-seconds", type=float, default=None,
-                        help="stop after this much simulated time (default: generous per lap)")
+    from clonedrive.udacity.client import AutonomousConfig
+
+    d = AutonomousConfig()
+    parser.add_argument("--track", default=d.track, help="lake, mountain, gen:<seed> or a .json")
+    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
+    parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
+                        help="the drive server's set speed (drive.py's and `clonedrive drive`'s "
+                             "default): interventions put the car back at it and the time "
+                             "limit follows from it")
+    parser.add_argument("--host", default=d.client.host, help="drive server host")
+    parser.add_argument("--port", type=int, default=d.client.port, help="drive server port")
+    parser.add_argument("--connect-timeout", type=float, default=d.client.connect_timeout_s,
+                        metavar="SECONDS",
+                        help="keep retrying to reach the drive server this long")
+    parser.add_argument("--max-seconds", type=float, default=d.max_seconds,
+                        help="stop after this much simulated time (default: the time limit, "
+                             "2.5 x the laps' time at --speed + 30 s)")
+    parser.add_argument("--seed", type=int, default=d.seed, help="the scene's seed")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks, barriers)")
     parser.add_argument("--json", action="store_true", help="print the metrics as JSON")
@@ -47,8 +55,9 @@ def run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     try:
-        config = AutonomousConfig(track=args.track, laps=args.laps, max_seconds=args.max_seconds,
-                                  scenery=not args.no_scenery,
+        config = AutonomousConfig(track=args.track, laps=args.laps, speed_mph=args.speed,
+                                  max_seconds=args.max_seconds, scenery=not args.no_scenery,
+                                  seed=args.seed,
                                   client=ClientConfig(host=args.host, port=args.port,
                                                       connect_timeout_s=args.connect_timeout))
     except ValueError as error:

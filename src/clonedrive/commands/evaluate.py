@@ -18,18 +18,25 @@ DESCRIPTION = (
 
 
 def add_arguments(parser) -> None:
+    from clonedrive.evaluate.config import EvalConfig
+
+    d = EvalConfig()
     parser.add_argument("model", help="trained model (.keras, .h5 or .onnx)")
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
                         help="track to drive (repeatable): lake, mountain, gen:<seed>, or a .json "
-                             "file; default lake (none if only --unseen is given)")
+                             f"file; default {', '.join(d.tracks)} (none if only --unseen is "
+                             "given)")
     parser.add_argument("--speed", action="append", type=float, default=None, metavar="MPH",
-                        help="set speed in mph (repeatable); default 15")
-    parser.add_argument("--laps", type=int, default=2, help="laps to drive per run")
-    parser.add_argument("--unseen", type=int, default=0, metavar="N",
+                        help="set speed in mph (repeatable); default "
+                             f"{', '.join(f'{v:g}' for v in d.speeds_mph)}")
+    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive per run")
+    parser.add_argument("--unseen", type=int, default=d.unseen, metavar="N",
                         help="also drive N generated tracks never used in recording "
                              "(seeds from 1000)")
-    parser.add_argument("--unseen-speed", type=float, default=None, metavar="MPH",
+    parser.add_argument("--unseen-speed", type=float, default=d.unseen_speed_mph, metavar="MPH",
                         help="set speed on the unseen tracks (default: the first --speed)")
+    parser.add_argument("--unseen-laps", type=int, default=d.unseen_laps, metavar="N",
+                        help="laps on the unseen tracks (default: --laps)")
     parser.add_argument("--video", action="store_true",
                         help="write an mp4 of the center camera with a HUD per built-in run")
     parser.add_argument("--video-saliency", action="store_true",
@@ -37,11 +44,17 @@ def add_arguments(parser) -> None:
                              "network looks) onto the frames")
     parser.add_argument("--slow-in-curves", action="store_true",
                         help="reduce the target speed as the predicted steering grows")
-    parser.add_argument("--batch", type=int, default=8,
+    parser.add_argument("--batch", type=int, default=d.batch,
                         help="runs driven in lock-step with their frames batched")
-    parser.add_argument("--workers", type=int, default=None,
+    parser.add_argument("--workers", type=int, default=d.workers,
                         help="worker processes the runs are spread over, each driving its share "
                              "in lock-step (default: one per CPU core)")
+    parser.add_argument("--max-seconds", type=float, default=d.max_seconds, metavar="SECONDS",
+                        help="stop each run after this much simulated time (quick checks; "
+                             "default: the time limit, 2.5 x the laps' time at the set speed "
+                             "+ 30 s)")
+    parser.add_argument("--no-scenery", action="store_true",
+                        help="road and terrain only (no trees, rocks, barriers)")
     parser.add_argument("--out", default=None,
                         help="output folder (default: eval/ beside the model)")
     parser.add_argument("--json", action="store_true", help="print eval.json's content")
@@ -51,27 +64,29 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
+    from clonedrive.evaluate.config import EvalConfig
+    from clonedrive.evaluate.rollout import evaluate, format_table
     from clonedrive.paths import prepare_output_folder
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 
-    tracks = args.track if args.track is not None else ([] if args.unseen else ["lake"])
+    d = EvalConfig()
+    tracks = args.track if args.track is not None else ([] if args.unseen else list(d.tracks))
     try:
         for name in tracks:
             load_track(name)
     except TrackError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    if args.laps < 1:
-        print("error: --laps must be at least 1", file=sys.stderr)
-        return 2
     try:
-        config = EvalConfig(tracks=tuple(tracks), speeds_mph=tuple(args.speed or [15.0]),
+        config = EvalConfig(tracks=tuple(tracks),
+                            speeds_mph=tuple(args.speed) if args.speed else d.speeds_mph,
                             laps=args.laps, unseen=args.unseen,
-                            unseen_speed_mph=args.unseen_speed, video=args.video,
-                            slow_in_curves=args.slow_in_curves, batch=args.batch,
-                            video_saliency=args.video_saliency, workers=args.workers)
+                            unseen_speed_mph=args.unseen_speed, unseen_laps=args.unseen_laps,
+                            video=args.video, slow_in_curves=args.slow_in_curves,
+                            scenery=not args.no_scenery, batch=args.batch,
+                            max_seconds=args.max_seconds, video_saliency=args.video_saliency,
+                            workers=args.workers)
     except ValueError as error:  # --speed nan, -5, 31...
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -6,8 +6,6 @@ import argparse
 import json
 import sys
 
-from clonedrive.udacity_spec import JPEG_QUALITY
-
 HELP = "record the expert driving a track as a Udacity-format log (driving_log.csv + IMG/)"
 DESCRIPTION = (
     "Drive the expert autopilot around a track in the headless simulator and write OUT/"
@@ -25,34 +23,41 @@ HISTOGRAM_BAR_WIDTH = 40
 
 def add_log_format_arguments(parser: argparse.ArgumentParser) -> None:
     """How a recording is written: shared by ``record`` and the ``sim`` window."""
+    from clonedrive.data.recorder import RecordConfig
+
+    d = RecordConfig()
     parser.add_argument("--header", action="store_true",
                         help="write the CSV header line (the Udacity simulator writes none)")
     parser.add_argument("--relative-paths", action="store_true",
                         help="write IMG/<name> instead of absolute image paths")
-    parser.add_argument("--jpeg-quality", type=int, default=JPEG_QUALITY,
+    parser.add_argument("--jpeg-quality", type=int, default=d.jpeg_quality,
                         help="JPEG quality 1-100")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from clonedrive.data.recorder import RecordConfig
     from clonedrive.drivers.expert import STYLES
 
-    parser.add_argument("--track", default="lake",
+    d = RecordConfig()
+    parser.add_argument("--track", default=d.track,
                         help="built-in track name, gen:<seed>, or a track .json file")
-    parser.add_argument("--style", default="center", choices=STYLES, help="how the expert drives")
-    parser.add_argument("--laps", type=int, default=1, help="laps to drive")
-    parser.add_argument("--seconds", type=float, default=None,
+    parser.add_argument("--style", default=d.style, choices=STYLES, help="how the expert drives")
+    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
+    parser.add_argument("--seconds", type=float, default=d.seconds,
                         help="stop after this many seconds of simulated driving")
-    parser.add_argument("--speed", type=float, default=15.0,
+    parser.add_argument("--speed", type=float, default=d.speed_mph,
                         help="set speed in mph (a maximum: the expert slows for curves)")
     parser.add_argument("--out", required=True, help="folder to write (appended to if it exists)")
     parser.add_argument("--reverse", action="store_true", help="drive the track backwards")
-    parser.add_argument("--noise", type=float, default=0.0,
+    parser.add_argument("--noise", type=float, default=d.noise,
                         help="std of steering noise applied to the car (labels stay clean)")
-    parser.add_argument("--seed", type=int, default=0, help="seeds the noise, weave and scene")
-    parser.add_argument("--offset-fraction", type=float, default=0.6,
+    parser.add_argument("--seed", type=int, default=d.seed, help="seeds the noise, weave and scene")
+    parser.add_argument("--offset-fraction", type=float, default=d.offset_fraction,
                         help="left/right styles: fraction of the usable half-width off centre")
+    parser.add_argument("--max-off-road", type=int, default=d.max_off_road_events, metavar="N",
+                        help="stop early once the expert has left the road N times")
     add_log_format_arguments(parser)
-    parser.add_argument("--start-time", default=None,
+    parser.add_argument("--start-time", default=d.start_time,
                         help="ISO time of the first image name (default: now, local time)")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks...)")
@@ -74,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
             track=args.track, style=args.style, laps=args.laps, seconds=args.seconds,
             speed_mph=args.speed,
             reverse=args.reverse, noise=args.noise, seed=args.seed,
-            offset_fraction=args.offset_fraction, header=args.header,
+            offset_fraction=args.offset_fraction, max_off_road_events=args.max_off_road,
+            header=args.header,
             relative_paths=args.relative_paths, jpeg_quality=args.jpeg_quality,
             start_time=args.start_time, scenery=not args.no_scenery, randomize=args.randomize,
             look=args.look,

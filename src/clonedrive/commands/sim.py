@@ -27,10 +27,13 @@ DESCRIPTION = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from clonedrive.manual.session import DEFAULT_OUT_DIR, ManualConfig
+
+    d = ManualConfig()
     parser.add_argument("--track", default=None,
                         help="skip the menu and drive this track (name, gen:<seed> or .json)")
     parser.add_argument("--reverse", action="store_true", help="with --track: drive backwards")
-    parser.add_argument("--out", default="data/manual",
+    parser.add_argument("--out", default=DEFAULT_OUT_DIR,
                         help="folder R records into (appended to if it holds a log)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--windowed", action="store_true",
@@ -48,10 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keys held from the start, comma-separated Panda3D names "
                              "(w, arrow_left, ...): for scripted runs")
     parser.add_argument("--record", action="store_true", help="start recording at once")
-    parser.add_argument("--server", default=f"127.0.0.1:{PORT}",
+    parser.add_argument("--server", default=f"{d.server_host}:{d.server_port}",
                         help="HOST:PORT of the drive server autonomous mode (P) connects to")
-    parser.add_argument("--seed", type=int, default=0, help="the scene's seed")
-    parser.add_argument("--generated-seed", type=int, default=1,
+    parser.add_argument("--seed", type=int, default=d.seed, help="the scene's seed")
+    parser.add_argument("--generated-seed", type=int, default=d.generated_seed,
                         help="seed of the menu's generated track (G picks the next)")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks...): quicker to load")

@@ -74,9 +74,7 @@ from clonedrive.data.driving_log import (
 from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.speed_labels import SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
-from clonedrive.episode.drivers import ExpertCar
 from clonedrive.episode.rules import EpisodeRules, Stop
-from clonedrive.episode.runner import Episode, PerCar, Runner, Step
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.udacity_spec import JPEG_QUALITY
 
@@ -125,8 +123,8 @@ class RecordConfig:
             raise ValueError(f"noise must be in [0, 1] (steering units), got {self.noise}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100], got {self.jpeg_quality}")
-        if self.seconds is not None and not self.seconds > 0:
-            raise ValueError(f"seconds must be positive, got {self.seconds}")
+        if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
+            raise ValueError(f"seconds must be a positive number of seconds, got {self.seconds}")
         if self.max_off_road_events < 1:
             raise ValueError("max_off_road_events must be at least 1")
         if self.fsync_every_rows < 1:
@@ -207,6 +205,8 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
 
 def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSummary:
     from clonedrive import __version__
+    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.runner import Episode, PerCar, Runner, Step
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.world.catalog import load_track
 

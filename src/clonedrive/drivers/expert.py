@@ -36,12 +36,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from clonedrive.sim.simulator import SimObservation
 from clonedrive.udacity_spec import CONTROL_HZ
-from clonedrive.world.track import Track
 from clonedrive.world.vehicle import (
     AIR_DENSITY_KGPM3,
     GRAVITY_MPS2,
@@ -49,6 +48,10 @@ from clonedrive.world.vehicle import (
     Controls,
     VehicleParams,
 )
+
+if TYPE_CHECKING:  # annotations only: the CLI reads STYLES without loading the simulator
+    from clonedrive.sim.simulator import SimObservation
+    from clonedrive.world.track import Track
 
 STYLES = ("center", "left", "right", "weave", "turns")
 

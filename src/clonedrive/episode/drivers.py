@@ -39,8 +39,11 @@ class NetworkDriver:
     """A :class:`~clonedrive.drivers.network.NetworkPolicy` driving N cars: one batched
     prediction for all their center frames per step, and a PI speed controller per car holding
     that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed
-    capped by it, with the policy's ``slow_in_curves`` lower in bends). An intervention resets
-    the car's controller (the car is at its set speed)."""
+    capped by it, with the policy's ``slow_in_curves`` lower in bends).
+
+    An intervention leaves the controller as it is, as it leaves a remote drive server's (which
+    is never told): the car is put back at its set speed, where the integral term that held it
+    there is still right. So ``evaluate`` and ``autonomous`` drive alike after one."""
 
     def __init__(self, policy: NetworkPolicy, set_speeds_mph: Sequence[float]) -> None:
         self.policy = policy
@@ -69,4 +72,4 @@ class NetworkDriver:
         return decisions
 
     def intervened(self, car: int, obs: SimObservation) -> None:
-        self.controllers[car].reset()
+        """Nothing to forget (see the class)."""

@@ -48,10 +48,14 @@ import os
 from dataclasses import dataclass, replace
 from datetime import timedelta
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from clonedrive.episode.rules import EpisodeRules
-from clonedrive.sim.simulator import Controls, SimConfig, SimObservation
 from clonedrive.udacity_spec import JPEG_QUALITY, PORT
+from clonedrive.world.vehicle import Controls
+
+if TYPE_CHECKING:  # the simulator loads when a track opens, not when the CLI reads defaults
+    from clonedrive.sim.simulator import SimConfig, SimObservation
 
 #: Modes of a session.
 MENU, DRIVING, AUTONOMOUS = "menu", "driving", "autonomous"
@@ -68,6 +72,8 @@ DRIVING_KEYS = STEER_LEFT_KEYS | STEER_RIGHT_KEYS | THROTTLE_KEYS | REVERSE_KEYS
 GAMEPAD_AXES = ("left_x", "right_trigger", "left_trigger")
 #: Below this speed a negative throttle reverses instead of braking (the Udacity car).
 REVERSE_BELOW_MPH = 5.0
+#: Where ``R`` records unless told otherwise.
+DEFAULT_OUT_DIR = "data/manual"
 #: A status message stays on the HUD this long [s of simulated time].
 MESSAGE_SECONDS = 4.0
 
@@ -107,8 +113,8 @@ class ManualConfig:
         for name in ("keyboard_steer_rate_per_s", "keyboard_return_rate_per_s",
                      "throttle_rate_per_s", "mouse_gain", "connect_timeout_s",
                      "reply_timeout_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {getattr(self, name)}")
         if not 0 < self.keyboard_max_steering <= 1:
             raise ValueError(
                 f"keyboard_max_steering must be in (0, 1], got {self.keyboard_max_steering}")
@@ -177,10 +183,12 @@ class DrivingSession:
     """
 
     def __init__(self, config: ManualConfig | None = None,
-                 out_dir: str | os.PathLike = "data/manual", *,
+                 out_dir: str | os.PathLike = DEFAULT_OUT_DIR, *,
                  sim_config: SimConfig | None = None) -> None:
         self.config = config or ManualConfig()
         self.out_dir = Path(out_dir).absolute()
+        from clonedrive.sim.simulator import SimConfig
+
         self.sim_config = sim_config or SimConfig(scenery=self.config.scenery)
         self.mode = MENU
         self.quit_requested = False

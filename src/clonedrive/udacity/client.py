@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clonedrive.sim.simulator import Controls
 from clonedrive.udacity import protocol
 from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
+from clonedrive.world.vehicle import Controls
 
 logger = logging.getLogger("clonedrive.client")
 
@@ -68,7 +68,7 @@ class ClientConfig:
         if not 0 <= self.port <= 65535:
             raise ValueError(f"port must be in 0..65535, got {self.port}")
         for name in ("connect_timeout_s", "reply_timeout_s"):
-            if not getattr(self, name) > 0:
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in 1..100, got {self.jpeg_quality}")

@@ -416,8 +416,8 @@ def _reference_key(track: str, speed_mph: float) -> str:
 def expert_references(config: DaggerConfig) -> dict:
     """The expert's figures on every evaluation (track, speed): its lap time and smoothness
     (:func:`clonedrive.evaluate.reference.expert_reference`); the benchmark brings its own."""
+    from clonedrive.evaluate.config import UNSEEN_SEED_BASE
     from clonedrive.evaluate.reference import expert_reference
-    from clonedrive.evaluate.rollout import UNSEEN_SEED_BASE
 
     if config.bench_splits:
         return {}

@@ -14,6 +14,7 @@ import pytest
 
 from clonedrive.cli import main
 from clonedrive.evaluate.video import read_stills, read_stills_in_order
+from clonedrive.report.context import OPTIONAL_SECTION_TITLES
 from clonedrive.report.writeup import SECTION_TITLES, write_report
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
@@ -41,11 +42,28 @@ def run_dir(tmp_path_factory) -> Path:
     evaluate(NetworkPolicy(build_tiny_model(0), set_speed_mph=20.0),
              EvalConfig(tracks=("lake",), speeds_mph=(20.0,), laps=1, scenery=False,
                         max_seconds=6.0, video=True), run / "eval", progress=False)
+    (run / "dagger.json").write_text(json.dumps(DAGGER_JSON), encoding="utf-8")
     (run / "demo.json").write_text(json.dumps({
         "config": {"quick": True, "epochs": 1},
         "stages": {"record": {"seconds": 1.5, "rows": 115}, "train": {"seconds": 9.0}},
     }), encoding="utf-8")
     return run
+
+
+#: What `clonedrive dagger` writes, cut down to one iteration and the plain-cloning row.
+DAGGER_JSON = {
+    "config": {"tracks": ["mountain"]},
+    "iterations": [
+        {"iteration": 0, "method": "base", "beta": None, "labels_total": 0,
+         "eval": {"unseen": {"success_pct": 25.0, "interventions_per_km": 1.5}}},
+        {"iteration": 1, "method": "dagger", "beta": 0.5, "labels_total": 900,
+         "collect": {"takeovers_per_km": 2.0},
+         "eval": {"unseen": {"success_pct": 75.0, "interventions_per_km": 0.25,
+                             "lap_time_ratio": 1.04}}},
+    ],
+    "plain": {"method": "plain", "labels_total": 900, "epochs": 2,
+              "eval": {"unseen": {"success_pct": 50.0, "interventions_per_km": 0.75}}},
+}
 
 
 @pytest.fixture(scope="module")
@@ -66,6 +84,16 @@ def _table_rows(text: str) -> list[list[str]]:
     lines = [line for line in text.splitlines() if line.startswith("|")]
     return [[cell.strip().strip("*") for cell in line.strip("|").split(" | ")]
             for line in lines[2:]]
+
+
+def test_beyond_sections_compare_with_the_expert_saliency_and_dagger(report) -> None:
+    result, out, markdown = report
+    expert = _section(markdown, SECTION_TITLES["expert"])
+    assert "lap time" in expert and _table_rows(expert)[0][0].startswith("lake")
+    assert (out / "report" / "saliency.png").is_file()
+    rows = _table_rows(_section(markdown, OPTIONAL_SECTION_TITLES["dagger"]))
+    assert [row[0] for row in rows] == ["0", "1", "plain cloning (2 epochs)"]
+    assert rows[1][2:6] == ["900", "2.00", "75", "0.25"]
 
 
 def test_markdown_has_every_section_and_no_skip_notes(report) -> None:

@@ -37,10 +37,13 @@ SECTION_TITLES = {
     "network": "3. The network",
     "training": "4. Training",
     "results": "5. Closed-loop results",
-    "timings": "6. Run timings",
+    "expert": "6. Against the expert",
+    "saliency": "7. Where the network looks",
+    "timings": "8. Run timings",
 }
-#: Sections only in the report when asked for (``report --real-log``).
-OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)"}
+#: Sections only in the report when asked for (``report --real-log``) or when the run has
+#: them (``dagger.json``).
+OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)", "dagger": "DAgger"}
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,8 @@ the report is written whatever the run holds. Figures go to ``OUT/report/*.png``
 
 This module puts the document together; each section is a module of
 :mod:`clonedrive.report.sections` (``data``, ``balance``, ``network``, ``training``,
-``results`` with ``failures``, ``timings``, and ``intro``, built last from what the others
+``results`` with ``failures``, ``expert``, ``saliency``, ``dagger``, ``timings``, and
+``intro``, built last from what the others
 found), sharing a :class:`~clonedrive.report.context.ReportContext`.
 """
 
@@ -44,11 +45,14 @@ from clonedrive.report.context import (
 from clonedrive.report.document import Document, Section, to_html, to_markdown
 from clonedrive.report.sections import (
     balance,
+    dagger,
     data,
+    expert,
     intro,
     network,
     realdata,
     results,
+    saliency,
     timings,
     training,
 )
@@ -67,7 +71,10 @@ SECTIONS: tuple[tuple[str, Callable[[ReportContext], list[Section]]], ...] = (
     ("network", network.build),
     ("training", training.build),
     ("results", results.build),
+    ("expert", expert.build),
+    ("saliency", saliency.build),
     ("realdata", realdata.build),
+    ("dagger", dagger.build),
     ("timings", timings.build),
 )
 

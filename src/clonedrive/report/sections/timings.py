@@ -1,4 +1,4 @@
-"""6. Run timings: the stages' wall-clock times from ``demo.json``.
+"""8. Run timings: the stages' wall-clock times from ``demo.json``.
 """
 
 from __future__ import annotations

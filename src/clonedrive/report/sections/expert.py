@@ -1,0 +1,63 @@
+"""6. Against the expert: each run's lap time and smoothness over the expert's on the same
+track and speed cap (eval.json's ``expert`` and ``*_ratio`` figures; see
+:mod:`clonedrive.evaluate.reference`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from clonedrive.report import formatting as fmt
+from clonedrive.report.context import SECTION_TITLES, ReportContext
+from clonedrive.report.document import Paragraph, Section, Table
+
+#: (eval.json key of the ratio, column title).
+RATIOS = (
+    ("lap_time_ratio", "lap time"),
+    ("steering_rate_per_s_ratio", "steering rate"),
+    ("steering_jerk_per_s2_ratio", "steering jerk"),
+    ("lateral_accel_rms_mps2_ratio", "lat. accel RMS"),
+    ("lateral_jerk_mps3_ratio", "lat. jerk"),
+)
+
+
+def build(ctx: ReportContext) -> list[Section]:
+    title = SECTION_TITLES["expert"]
+    runs = list((ctx.eval or {}).get("runs") or [])
+    compared = [run for run in runs if isinstance(run.get("expert"), dict)]
+    if not compared:
+        return ctx.missing(title, "No run in `eval.json` carries the expert's reference "
+                                  "figures (evaluate writes them): no comparison.")
+    rows = []
+    for run in compared:
+        expert = run["expert"]
+        rows.append((fmt.track_label(run), fmt.num(run.get("speed_mph"), 0),
+                     fmt.num(run.get("lap_time_s"), 1), fmt.num(expert.get("lap_time_s"), 1),
+                     *(fmt.num(run.get(key)) for key, _ in RATIOS),
+                     fmt.num(run.get("steering_rate_per_s"), 3),
+                     fmt.num(expert.get("steering_rate_per_s"), 3)))
+    means = {key: _mean(run.get(key) for run in compared) for key, _ in RATIOS}
+    rows.append(("mean", "", "", "", *(fmt.num(means[key]) for key, _ in RATIOS), "", ""))
+    text = (
+        "The expert (the autopilot that recorded the data, no steering noise) drove each "
+        "evaluated track from the same start at the same speed cap. Each figure is the "
+        "network's run over the expert's (1.00 = the same; lower lap time is faster, lower "
+        "smoothness figures are calmer). Steering rate is the mean |change of steering| per "
+        "second, steering jerk the mean |second difference| per s², lateral acceleration "
+        "v × (rate of turn of the direction of travel), lateral jerk its mean |change| per "
+        "second; no difference spans an intervention. The lap time counts only a first lap "
+        "driven clean (from a standing start), so a run that left the road has none.")
+    blocks: list = [Paragraph(text), Table(
+        ("track", "mph", "lap s", "expert lap s", *(name for _, name in RATIOS),
+         "steering rate /s", "expert's /s"),
+        tuple(rows), align="lrrr" + "r" * len(RATIOS) + "rr", total_rows=(len(rows) - 1,))]
+    if means["lap_time_ratio"] is not None or means["steering_rate_per_s_ratio"] is not None:
+        ctx.headline(f"Against the expert: lap time {fmt.num(means['lap_time_ratio'])}×, "
+                     f"steering rate {fmt.num(means['steering_rate_per_s_ratio'])}×, lateral "
+                     f"jerk {fmt.num(means['lateral_jerk_mps3_ratio'])}× (mean over runs).")
+    return [Section(title, blocks=blocks)]
+
+
+def _mean(values) -> float | None:
+    kept = [float(value) for value in values if isinstance(value, int | float)]
+    return float(np.mean(kept)) if kept else None

@@ -49,7 +49,6 @@ recovery rows are recorded with its clean labels.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import queue
@@ -61,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import config_to_dict, write_json_atomic
+from clonedrive.config import JsonFileError, config_to_dict, read_json, write_json_atomic
 from clonedrive.data.driving_log import (
     CAMERAS,
     CSV_NAME,
@@ -493,8 +492,8 @@ def write_session_config(out: Path, config, track, version: str, session: dict) 
     sessions: list = []
     if path.is_file():
         try:
-            previous = json.loads(path.read_text(encoding="utf-8"))
-        except (json.JSONDecodeError, UnicodeDecodeError):
+            previous = read_json(path, what="config file")
+        except JsonFileError:  # unreadable: start the list of sessions afresh
             previous = {}
         if isinstance(previous, dict) and isinstance(previous.get("sessions"), list):
             sessions = [item for item in previous["sessions"]

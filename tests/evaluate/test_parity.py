@@ -105,7 +105,7 @@ def test_evaluate_and_autonomous_agree_on_laps_interventions_and_cte(
     evaluation = run_json(capsys, [
         "evaluate", str(files["model"]), "--track", tracks[0], "--track", tracks[1],
         "--speed", SET_SPEED, "--laps", "1", "--no-scenery", "--out", str(tmp_path / "eval"),
-        "--json"])
+        "--workers", "1", "--json"])  # in this process: no worker start-up to wait for
     assert evaluation["complete"]
     remotes = [run_json(capsys, ["autonomous", "--track", track, "--speed", SET_SPEED, "--laps",
                                  "1", "--no-scenery", "--port", str(drive_server), "--json"])

@@ -160,3 +160,23 @@ def test_load_errors(tmp_path: Path) -> None:
     keras.Model(small, layers.Dense(1)(layers.Flatten()(small))).save(tmp_path / "nvidia.keras")
     with pytest.raises(ValueError, match=r"\(66, 200, 3\)"):
         load_model(tmp_path / "nvidia.keras")
+
+
+def test_steering_filter_is_a_first_order_low_pass() -> None:
+    from clonedrive.drivers.network import SteeringFilter
+
+    passthrough = SteeringFilter(0.0)
+    assert [passthrough.update(v) for v in (0.5, -0.5)] == [0.5, -0.5]
+    hand = SteeringFilter(0.1, control_hz=15.0)  # alpha = (1/15) / (0.1 + 1/15) = 0.4
+    assert hand.update(0.0) == 0.0
+    assert hand.update(1.0) == pytest.approx(0.4)
+    assert hand.update(1.0) == pytest.approx(0.64)
+    hand.reset()
+    assert hand.update(1.0) == 1.0  # a new episode starts from the first command
+    with pytest.raises(ValueError, match=">= 0"):
+        SteeringFilter(-1.0)
+    policy = NetworkPolicy(constant_model(0.5), steering_filter_s=0.1)
+    image = frames(1, 4)[0]
+    assert policy.act(image, 9.0)[0] == pytest.approx(0.5)  # first command passes
+    policy.steering_filter.steering = 0.0
+    assert policy.act(image, 9.0)[0] == pytest.approx(0.2)

@@ -42,6 +42,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--video-saliency", action="store_true",
                         help="with --video: paint the VisualBackProp saliency mask (where the "
                              "network looks) onto the frames")
+    parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S",
+                        help="low-pass the predicted steering with this time constant [s] "
+                             "(0.1 = the expert's hand; 0 = off, as drive.py)")
     parser.add_argument("--slow-in-curves", action="store_true",
                         help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=d.batch,
@@ -91,7 +94,8 @@ def run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     try:
-        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)
+        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves,
+                                       steering_filter_s=args.steering_filter)
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from clonedrive.udacity_spec import IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
+from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
 if TYPE_CHECKING:
@@ -93,6 +93,31 @@ class SpeedController:
         return float(np.clip(self.kp * error + self.ki * self.integral_mph, -1.0, 1.0))
 
 
+class SteeringFilter:
+    """A first-order low-pass on the steering command, ``time_constant_s`` [s] at
+    ``control_hz``: the expert's "hand" (drivers.expert, 0.1 s). 0 passes steering through."""
+
+    def __init__(self, time_constant_s: float = 0.0, control_hz: float = CONTROL_HZ) -> None:
+        if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
+            raise ValueError(f"steering filter time constant must be >= 0 s, got "
+                             f"{time_constant_s}")
+        self.time_constant_s = float(time_constant_s)
+        period = 1.0 / float(control_hz)
+        self.alpha = period / (self.time_constant_s + period)
+        self.steering: float | None = None
+
+    def reset(self) -> None:
+        self.steering = None
+
+    def update(self, steering: float) -> float:
+        """The filtered steering after this step's command ``steering``."""
+        if self.steering is None or self.alpha >= 1.0:
+            self.steering = float(steering)
+        else:
+            self.steering += self.alpha * (float(steering) - self.steering)
+        return self.steering
+
+
 class NetworkPolicy:
     """Steer with a Keras model; hold a target speed with :class:`SpeedController`.
 
@@ -101,6 +126,8 @@ class NetworkPolicy:
     ``slow_in_curves`` (off by default): the hand-made rule, the target falls as the predicted
     steering grows, ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)``
     (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
+    ``steering_filter_s`` > 0 low-passes the predicted steering (:class:`SteeringFilter`;
+    off by default, as drive.py).
     """
 
     def __init__(
@@ -114,8 +141,11 @@ class NetworkPolicy:
         curve_gain: float = 1.5,
         min_speed_fraction: float = 0.4,
         batch_size: int = 64,
+        steering_filter_s: float = 0.0,
     ) -> None:
         check_model(model)
+        self.steering_filter_s = float(steering_filter_s)
+        self.steering_filter = self.new_steering_filter()
         self.model = model
         self.speed_head = has_speed_head(model)
         self.set_speed_mph = float(set_speed_mph)
@@ -131,6 +161,11 @@ class NetworkPolicy:
     def reset(self) -> None:
         self.controller.reset()
         self.controller.set_speed_mph = self.set_speed_mph
+        self.steering_filter.reset()
+
+    def new_steering_filter(self) -> SteeringFilter:
+        """A :class:`SteeringFilter` with this policy's time constant (one per car)."""
+        return SteeringFilter(self.steering_filter_s)
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:
@@ -157,10 +192,11 @@ class NetworkPolicy:
                 f"got {image_rgb.dtype} {image_rgb.shape}"
             )
         steering, learned = self._predict(image_rgb[np.newaxis])
+        steer = self.steering_filter.update(float(steering[0]))
         self.controller.set_speed_mph = self.target_speed_mph(
-            float(steering[0]), learned_speed_mph=None if learned is None else float(learned[0]))
+            steer, learned_speed_mph=None if learned is None else float(learned[0]))
         throttle = self.controller.update(speed_mph)
-        return float(steering[0]), throttle
+        return steer, throttle
 
     def predict_steering(self, images: np.ndarray) -> np.ndarray:
         """Steering in [-1, 1] for a batch of uint8 RGB frames ``(N, 160, 320, 3)`` -> ``(N,)``."""

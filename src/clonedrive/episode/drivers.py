@@ -49,6 +49,8 @@ class NetworkDriver:
         self.policy = policy
         self.set_speeds_mph = [float(speed) for speed in set_speeds_mph]
         self.controllers = [self._controller(speed) for speed in self.set_speeds_mph]
+        #: Per car: the policy's steering filter (a pass-through unless steering_filter_s).
+        self.filters = [policy.new_steering_filter() for _ in self.set_speeds_mph]
 
     def _controller(self, set_speed_mph: float) -> SpeedController:
         gains = self.policy.controller
@@ -56,6 +58,7 @@ class NetworkDriver:
 
     def reset(self, car: int) -> None:
         self.controllers[car] = self._controller(self.set_speeds_mph[car])
+        self.filters[car].reset()
 
     def act(self, cars: Sequence[int], observations: Sequence[SimObservation]
             ) -> list[Decision]:
@@ -63,6 +66,7 @@ class NetworkDriver:
         steering, learned = self.policy.predict(frames)
         decisions = []
         for index, (car, obs, steer) in enumerate(zip(cars, observations, steering, strict=True)):
+            steer = self.filters[car].update(float(steer))
             controller = self.controllers[car]
             controller.set_speed_mph = self.policy.target_speed_mph(
                 float(steer), set_speed_mph=self.set_speeds_mph[car],

@@ -106,6 +106,7 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
         "model": model_path,
         "slow_in_curves": config.slow_in_curves,
         "speed_head": speed_head,
+        "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")

@@ -58,6 +58,9 @@ from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 logger = logging.getLogger(__name__)
 
 CACHE_MODES = ("auto", "memory", "memmap")
+#: With a speed head, balancing keeps every sample whose speed label is below this [mph]
+#: (the expert slowing for a bend), whatever its steering.
+SLOWING_LABEL_MPH = 28.5
 CACHE_FILE = "image_cache.u8"
 
 
@@ -358,9 +361,19 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
             f"the recorded speed on {samples.rows_read - samples.rows_with_target_speed}")
 
     balance_rng = np.random.default_rng([config.seed, 1])
+    kept_for_speed = 0
     if config.balance:
         balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
-        samples = samples.subset(balanced.keep)
+        keep = balanced.keep
+        if config.speed_head:
+            # Steering balancing thins out the straight-ahead samples, and with them the
+            # braking zones before bends: the samples the speed head learns slowing from.
+            slowing = np.flatnonzero(samples.target_speed_mph < SLOWING_LABEL_MPH)
+            keep = np.union1d(keep, slowing)
+            kept_for_speed = len(keep) - len(balanced.keep)
+            lines.append(f"speed head: {kept_for_speed} samples where the "
+                         f"expert slows below {SLOWING_LABEL_MPH:g} mph kept back")
+        samples = samples.subset(keep)
         lines.append(balanced.summary())
     else:
         balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
@@ -419,7 +432,8 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         "skipped_rows": samples.skipped,
         "skipped_row_details": samples.skipped_details[:100],
         "samples_before_balance": int(balanced.counts_before.sum()),
-        "samples_after_balance": int(balanced.counts_after.sum()),
+        "samples_after_balance": int(balanced.counts_after.sum()) + kept_for_speed,
+        "speed_samples_kept": kept_for_speed,
         "balance": {
             "enabled": config.balance,
             "bin_edges": [round(float(edge), 6) for edge in balanced.bin_edges],

@@ -103,3 +103,11 @@ def test_evaluate_video_can_show_where_the_network_looks(tmp_path) -> None:
         band = frame[2 * 90:2 * 130].astype(int)  # the HUD frame is the camera at 2x
         greens[painted] = float(np.mean(band[..., 1] - band[..., 0]))
     assert greens[True] > greens[False] + 10.0  # the mask is painted green
+
+
+def test_a_model_cropping_less_has_masks_from_its_own_top_row() -> None:
+    model = build_model("fast", seed=1, crop_top_px=60, speed_head=True)
+    masks = VisualBackProp(model).masks(bright_stripe_frames())
+    assert not masks[:, :60].any() and masks[:, 60:80].any()
+    with pytest.raises(ValueError, match="crop_top_px"):
+        build_model("fast", crop_top_px=120)

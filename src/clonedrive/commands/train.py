@@ -68,6 +68,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "by the set speed. Udacity's own drive.py expects one output")
     parser.add_argument("--speed-loss-weight", type=float, default=given,
                         help=f"weight of the speed loss (default {d.speed_loss_weight:g})")
+    parser.add_argument("--crop-top", dest="crop_top_px", type=int, default=given, metavar="PX",
+                        help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
+                             "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
+                             "brake for)")
     parser.add_argument("--init-from", type=str, default=given, metavar="MODEL",
                         help="start from this model's weights (layers matched by name)")
     parser.add_argument("--no-h5", dest="export_h5", action="store_false", default=given,
@@ -82,7 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 _CONFIG_OPTIONS = (
     "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
     "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
-    "cache", "export_h5", "speed_head", "speed_loss_weight", "init_from",
+    "cache", "export_h5", "speed_head", "speed_loss_weight", "init_from", "crop_top_px",
 )
 
 

@@ -34,12 +34,15 @@ import numpy as np
 
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
 from clonedrive.keras_backend import import_keras
-from clonedrive.udacity_spec import IMAGE_SHAPE
+from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
 
 keras = import_keras()
 layers = keras.layers
 
-#: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels.
+#: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels. With the
+#: Udacity camera (60 deg vertical field, pitched 9.4 deg down, 1.2 m up) row 80 looks at the
+#: road about 7 m ahead and the horizon is near row 55: the write-up's crop sees 2-7 m of road.
+#: A smaller ``crop_top_px`` (60: about 36 m) lets a speed head see a bend before it brakes.
 CROP_TOP_PX = 80
 CROP_BOTTOM_PX = 25
 
@@ -77,8 +80,12 @@ def _frame_input():
     return keras.Input(shape=IMAGE_SHAPE, dtype="uint8", name="image_rgb")
 
 
-def _crop(inputs):
-    return layers.Cropping2D(cropping=((CROP_TOP_PX, CROP_BOTTOM_PX), (0, 0)), name="crop")(inputs)
+def _crop(inputs, crop_top_px: int = CROP_TOP_PX):
+    if not 0 <= crop_top_px < IMAGE_HEIGHT - CROP_BOTTOM_PX - 40:
+        raise ValueError(f"crop_top_px {crop_top_px}; expected 0 to "
+                         f"{IMAGE_HEIGHT - CROP_BOTTOM_PX - 41}")
+    return layers.Cropping2D(cropping=((int(crop_top_px), CROP_BOTTOM_PX), (0, 0)),
+                             name="crop")(inputs)
 
 
 def _to_data_format(x, data_format: str):
@@ -105,6 +112,7 @@ def _heads(inputs, features, seeds: _Seeds, speed_head: bool, name: str) -> kera
 def build_seed(
     *, seed: int = 0, dropout: float = 0.0, l2: float = 1e-3,
     data_format: str = "channels_first", speed_head: bool = False,
+    crop_top_px: int = CROP_TOP_PX,
 ) -> keras.Model:
     """The write-up's network.
 
@@ -117,7 +125,7 @@ def build_seed(
     seeds = _Seeds(seed)
     reg = keras.regularizers.L2(l2)
     inputs = _frame_input()
-    x = _crop(inputs)
+    x = _crop(inputs, crop_top_px)
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
     x = _to_data_format(x, data_format)
     for index, (filters, size, stride) in enumerate(
@@ -159,7 +167,7 @@ def _rgb_to_yuv_weights() -> list[np.ndarray]:
 
 def build_pilotnet(
     *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first",
-    speed_head: bool = False,
+    speed_head: bool = False, crop_top_px: int = CROP_TOP_PX,
 ) -> keras.Model:
     """NVIDIA's PilotNet (Bojarski et al. 2016) fed like the paper: 66x200 YUV.
 
@@ -170,7 +178,7 @@ def build_pilotnet(
     """
     seeds = _Seeds(seed)
     inputs = _frame_input()
-    x = _crop(inputs)
+    x = _crop(inputs, crop_top_px)
     x = layers.Rescaling(1.0 / 255.0, name="unit_range")(x)
     x = layers.Resizing(66, 200, interpolation="bilinear", name="resize")(x)
     x = _to_data_format(x, data_format)
@@ -196,7 +204,7 @@ def build_pilotnet(
 
 def build_fast(
     *, seed: int = 0, dropout: float = 0.0, data_format: str = "channels_first",
-    speed_head: bool = False,
+    speed_head: bool = False, crop_top_px: int = CROP_TOP_PX,
 ) -> keras.Model:
     """A small network (about 89k parameters) that trains in minutes on 2 CPU cores.
 
@@ -207,7 +215,7 @@ def build_fast(
     """
     seeds = _Seeds(seed)
     inputs = _frame_input()
-    x = _crop(inputs)
+    x = _crop(inputs, crop_top_px)
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
     x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
     x = _to_data_format(x, data_format)
@@ -234,7 +242,8 @@ def build_model(name: str, **options) -> keras.Model:
     ``options`` are passed to the builder: ``seed`` (int, initialiser seed), ``dropout``
     (float, 0 = off), ``data_format`` (``channels_first``, the default, or
     ``channels_last``; see the module doc), ``speed_head`` (bool, the second output
-    ``target_speed``; see the module doc) and, for ``seed`` only, ``l2``.
+    ``target_speed``; see the module doc), ``crop_top_px`` (rows cut from the top, default
+    :data:`CROP_TOP_PX`) and, for ``seed`` only, ``l2``.
     """
     try:
         builder = _BUILDERS[name]

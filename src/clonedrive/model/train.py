@@ -90,6 +90,7 @@ class TrainConfig:
     speed_head: bool = False  # also learn the expert's target speed (output "target_speed")
     speed_loss_weight: float = 1.0  # weight of the speed MSE beside the steering MSE
     init_from: str | None = None  # start from this model's weights (layers matched by name)
+    crop_top_px: int = 80  # rows the model cuts from the top (model.architectures.CROP_TOP_PX)
 
     def __post_init__(self) -> None:
         from clonedrive.data.split import SPLIT_KINDS
@@ -185,7 +186,7 @@ def train(
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
         else:
             model = build_model(config.model, seed=config.seed, dropout=config.dropout,
-                                speed_head=config.speed_head)
+                                speed_head=config.speed_head, crop_top_px=config.crop_top_px)
             if config.init_from is not None:
                 copied = load_initial_weights(model, config.init_from)
                 _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")

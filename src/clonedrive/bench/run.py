@@ -43,6 +43,7 @@ class BenchConfig:
     ray: str | None = None  #: "auto", a Ray cluster address, or "local"
     batch: int = 4  #: episodes one worker drives in lock-step
     slow_in_curves: bool = False  #: the network's target speed falls with |steering|
+    steering_filter_s: float = 0.0  #: low-pass on the predicted steering [s] (0 = off)
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -102,6 +103,7 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
         for i in range(0, len(episodes), config.batch):
             tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
                           "slow_in_curves": config.slow_in_curves,
+                          "steering_filter_s": config.steering_filter_s,
                           "trust_model": config.trust_model, "runtime": config.runtime,
                           "episodes": episodes[i:i + config.batch], **common})
     return tasks, refs

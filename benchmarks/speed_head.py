@@ -1,0 +1,116 @@
+"""Speed head at a 30 mph cap, no curve rule: clean laps, lap time and smoothness vs the expert.
+
+Issue 12's targets, measured with `clonedrive bench`: a model with a speed head (`train
+--speed-head`), driving with no `slow_in_curves` at a 30 mph cap, is clean on the mountain and on
+every benchmark track (suite v1's train-tracks and new-tracks easy/medium/hard, clear look, one
+lap from a standing start), with a lap time <= 1.05x the expert's and a smoothness ratio (mean
+|steering change| per second over the expert's) <= 1.2. With `--baseline MODEL` a one-output
+model is driven the same way with the hand-made curve rule (`slow_in_curves`), for comparison.
+
+Run: python benchmarks/speed_head.py MODEL [--baseline MODEL] [--steering-filter S]
+         [--workers N] [--out DIR] [--max-seconds S]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+#: Suite v1's splits that name the benchmark's tracks, driven at the cap only.
+SPLITS = ("train-tracks", "new-tracks-easy", "new-tracks-medium", "new-tracks-hard")
+CAP_MPH = 30.0
+
+
+def suite_at_cap(folder: Path) -> Path:
+    """Suite v1's track splits at the 30 mph cap only, clear look, as a suite file."""
+    from clonedrive.bench.suite import load_suite
+
+    v1 = load_suite("v1").to_dict()
+    lines = ['id = "v1-tracks-30mph"', 'description = "suite v1 tracks at the 30 mph cap"',
+             "laps = 1", ""]
+    for split in v1["splits"]:
+        if split["name"] not in SPLITS:
+            continue
+        tracks = ", ".join(f'"{name}"' for name in split["tracks"])
+        lines += ["[[split]]", f'name = "{split["name"]}"', f"tracks = [{tracks}]",
+                  f"speeds_mph = [{CAP_MPH}]", 'conditions = ["clear"]',
+                  f"seed = {split['seed']}", ""]
+    lines += ["[conditions.clear]", "held_out = false",
+              'description = "the theme\'s own look"', ""]
+    path = folder / "suite.toml"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path
+
+
+def run_bench(model: str, suite: Path, out: Path, *, slow_in_curves: bool, workers: int | None,
+              steering_filter_s: float, max_seconds: float | None) -> dict:
+    from clonedrive.bench.run import BenchConfig, bench
+
+    config = BenchConfig(models=(f"model={model}",), suite=str(suite), workers=workers,
+                         slow_in_curves=slow_in_curves, steering_filter_s=steering_filter_s,
+                         max_seconds=max_seconds)
+    report = bench(config, out, progress=True)
+    return next(iter(report["models"].values()))
+
+
+def summary(model: dict) -> dict:
+    runs = model["runs"]
+    mountain = [r for r in runs if r["track"] == "mountain"]
+    ratios = [r["scores"]["lap_time_ratio"] for r in runs if r["scores"]["lap_time_ratio"]]
+    smooth = [r["scores"]["smoothness_ratio"] for r in runs if r["scores"]["smoothness_ratio"]]
+    return {
+        "runs": len(runs),
+        "clean_runs": sum(1 for r in runs if r["clean"]),
+        "mountain_clean": bool(mountain and all(r["clean"] for r in mountain)),
+        "max_lap_time_ratio": round(max(ratios), 4) if ratios else None,
+        "mean_lap_time_ratio": round(sum(ratios) / len(ratios), 4) if ratios else None,
+        "mean_smoothness_ratio": round(sum(smooth) / len(smooth), 4) if smooth else None,
+        "splits": {name: {key: figures.get(key) for key in
+                          ("success_pct", "interventions_per_km", "lap_time_ratio",
+                           "smoothness_ratio")}
+                   for name, figures in model["splits"].items()},
+        "failed": [f"{r['track']} ({r['interventions']} interventions)" for r in runs
+                   if not r["clean"]],
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("model", help="a model with a speed head")
+    parser.add_argument("--baseline", help="a one-output model, driven with slow_in_curves")
+    parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--max-seconds", type=float, default=None,
+                        help="cap each episode (a quick check of the script, not the targets)")
+    parser.add_argument("--out", type=Path, default=None, help="keep bench folders here")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as temporary:
+        out = args.out or Path(temporary)
+        out.mkdir(parents=True, exist_ok=True)
+        suite = suite_at_cap(out)
+        figures = {"speed_head": summary(run_bench(
+            args.model, suite, out / "speed_head", slow_in_curves=False, workers=args.workers,
+            steering_filter_s=args.steering_filter, max_seconds=args.max_seconds))}
+        if args.baseline:
+            figures["baseline_slow_in_curves"] = summary(run_bench(
+                args.baseline, suite, out / "baseline", slow_in_curves=True,
+                workers=args.workers, steering_filter_s=args.steering_filter,
+                max_seconds=args.max_seconds))
+    for name, result in figures.items():
+        print(f"{name}: {result['clean_runs']}/{result['runs']} clean (mountain clean: "
+              f"{result['mountain_clean']}), lap time vs expert mean "
+              f"{result['mean_lap_time_ratio']} max {result['max_lap_time_ratio']} "
+              f"(target <= 1.05), smoothness ratio {result['mean_smoothness_ratio']} "
+              f"(target <= 1.2)")
+        for split, values in result["splits"].items():
+            print(f"  {split:<20} {values}")
+        if result["failed"]:
+            print(f"  not clean: {', '.join(result['failed'])}")
+    print(json.dumps(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

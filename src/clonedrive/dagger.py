@@ -540,9 +540,12 @@ def plot_dagger(report: dict, path: Path) -> Path:
     figure = Figure(figsize=(11, 3.8), dpi=100)
     axes = figure.subplots(1, 3)
     iterations = [row["iteration"] for row in rows]
-    splits = [name for name in ("builtin", "unseen", "overall")
-              if any(name in row["eval"] for row in rows)]
-    colours = {"builtin": "tab:blue", "unseen": "tab:orange", "overall": "tab:green"}
+    # evaluate's splits (builtin, unseen) or the benchmark's, in the order they first appear.
+    splits = list(dict.fromkeys(name for row in rows for name in row["eval"]))
+    palette = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:olive", "tab:cyan")
+    colours = {name: palette[index % len(palette)]
+               for index, name in enumerate(s for s in splits if s != "overall")}
+    colours["overall"] = "tab:green"
     for index, (figure_key, title) in enumerate((("interventions_per_km",
                                                   "evaluation: interventions per km"),
                                                  ("success_pct", "evaluation: success %"))):

@@ -2,6 +2,7 @@
 workers and Ray; bench.json and the leaderboard written."""
 
 import json
+import shutil
 
 import pytest
 
@@ -88,6 +89,16 @@ def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_pa
                  "bench_lap_time.png"):
         assert (tmp_path / "w1" / name).is_file()
     assert "| tiny |" in (tmp_path / "w1" / "leaderboard.md").read_text(encoding="utf-8")
+    # clonedrive report shows a run folder's bench runs (here bench/parity/) as a section.
+    from clonedrive.report.writeup import write_report
+
+    shutil.copytree(tmp_path / "w1", tmp_path / "run" / "bench" / "parity")
+    result = write_report(tmp_path / "run", tmp_path / "report")
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    section = markdown[markdown.index("\n## Benchmark\n"):]
+    assert "### `bench/parity`" in section and "| tiny |" in section
+    assert "Suite `tiny`" in section
+    assert (tmp_path / "report" / "report" / "bench_parity_bench_success.png").is_file()
 
 
 def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):

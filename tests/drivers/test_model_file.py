@@ -3,6 +3,7 @@ the outputs a steering model may have; NaN predictions counted."""
 
 from __future__ import annotations
 
+import json
 import logging
 import marshal
 import zipfile
@@ -140,6 +141,23 @@ def test_nan_predictions_are_counted() -> None:
     assert policy.nan_predictions == 1
     np.testing.assert_array_equal(policy.predict_steering(frames), np.zeros(5))
     assert policy.nan_predictions == 6
+    assert policy.last_nonfinite.tolist() == [True] * 5
+
+
+def test_evaluate_counts_nan_predictions_per_run_in_eval_json(tmp_path: Path) -> None:
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
+
+    inputs = keras.Input(shape=(160, 320, 3))
+    outputs = layers.Dense(1, name="steering")(layers.GlobalAveragePooling2D()(inputs))
+    model = keras.Model(inputs, outputs)
+    model.layers[-1].set_weights([np.zeros((3, 1), np.float32), np.array([np.nan], np.float32)])
+    config = EvalConfig(tracks=("lake", "mountain"), speeds_mph=(9.0,), laps=1, scenery=False,
+                        max_seconds=1.0, workers=1)
+    report = evaluate(NetworkPolicy(model), config, tmp_path, progress=False)
+    on_disk = json.loads((tmp_path / "eval.json").read_text(encoding="utf-8"))
+    # Two cars in lock-step for 1 s at 15 Hz: every one of each car's 15 frames was NaN.
+    assert [run["nan_predictions"] for run in on_disk["runs"]] == [15, 15]
+    assert "predicted NaN or infinite steering on 15 frame(s)" in format_table(report)
 
 
 # --------------------------------------------------------------------------- students' models

@@ -157,6 +157,9 @@ class NetworkPolicy:
         #: Frames whose steering prediction was NaN or infinite (driven straight / at full
         #: lock instead), over this policy's life; the drive server logs it.
         self.nan_predictions = 0
+        #: Which frames of the last :meth:`predict` batch had a NaN or infinite steering
+        #: prediction (so a driver of several cars can count them per car).
+        self.last_nonfinite = np.zeros(0, dtype=bool)
 
     def reset(self) -> None:
         self.controller.reset()
@@ -214,10 +217,11 @@ class NetworkPolicy:
         if len(images) == 0:
             empty = np.zeros(0, dtype=np.float32)
             return empty, (empty.copy() if self.speed_head else None)
-        chunks = [
-            self._predict(images[start : start + self.batch_size])
-            for start in range(0, len(images), self.batch_size)
-        ]
+        chunks, nonfinite = [], []
+        for start in range(0, len(images), self.batch_size):
+            chunks.append(self._predict(images[start : start + self.batch_size]))
+            nonfinite.append(self._last_chunk_nonfinite)
+        self.last_nonfinite = np.concatenate(nonfinite)
         steering = np.concatenate([chunk[0] for chunk in chunks])
         if not self.speed_head:
             return steering, None
@@ -234,7 +238,8 @@ class NetworkPolicy:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
         # A NaN prediction steers straight rather than poisoning the controls; it is counted.
-        self.nan_predictions += int(np.count_nonzero(~np.isfinite(steering)))
+        self._last_chunk_nonfinite = ~np.isfinite(steering)
+        self.nan_predictions += int(np.count_nonzero(self._last_chunk_nonfinite))
         steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
         if not self.speed_head:
             return steering, None

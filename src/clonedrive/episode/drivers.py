@@ -51,6 +51,8 @@ class NetworkDriver:
         self.controllers = [self._controller(speed) for speed in self.set_speeds_mph]
         #: Per car: the policy's steering filter (a pass-through unless steering_filter_s).
         self.filters = [policy.new_steering_filter() for _ in self.set_speeds_mph]
+        #: Per car: frames whose steering prediction was NaN or infinite (driven straight).
+        self.nan_predictions = [0] * len(self.set_speeds_mph)
 
     def _controller(self, set_speed_mph: float) -> SpeedController:
         gains = self.policy.controller
@@ -64,6 +66,10 @@ class NetworkDriver:
             ) -> list[Decision]:
         frames = np.stack([obs.images["center"] for obs in observations])
         steering, learned = self.policy.predict(frames)
+        nonfinite = getattr(self.policy, "last_nonfinite", None)
+        if nonfinite is not None and len(nonfinite) == len(cars):
+            for car, bad in zip(cars, nonfinite, strict=True):
+                self.nan_predictions[car] += int(bad)
         decisions = []
         for index, (car, obs, steer) in enumerate(zip(cars, observations, steering, strict=True)):
             steer = self.filters[car].update(float(steer))

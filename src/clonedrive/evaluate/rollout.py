@@ -227,8 +227,8 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
             saliency = VisualBackProp(policy.model)
             for run in runs:
                 run.saliency = saliency
-        runner = Runner([run.episode for run in runs],
-                        NetworkDriver(policy, [run.spec.speed_mph for run in runs]))
+        driver = NetworkDriver(policy, [run.spec.speed_mph for run in runs])
+        runner = Runner([run.episode for run in runs], driver)
         runner.reset()
         for run in runs:
             run.episode.trace.unseen = run.spec.unseen
@@ -240,6 +240,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
                 bar.update(1)
             if step.stopped is not None:
                 run.result = _finish(run, out)
+                run.result["nan_predictions"] = driver.nan_predictions[step.car]
                 publish(run.index, run.result)
 
         runner.run(on_step)
@@ -339,6 +340,10 @@ def format_table(report: dict) -> str:
             f"{r['autonomy_pct']:>9.1f}{r['mean_abs_cte_m']:>10.2f}{r['max_abs_cte_m']:>9.2f}"
             f"{r['smoothness']:>8.2f}{r['mean_speed_mph']:>7.1f}{r['distance_m']:>8.0f}"
             f"{ratio(r.get('lap_time_ratio')):>8}{ratio(r.get('steering_rate_per_s_ratio')):>9}")
+    nan_runs = [r for r in report["runs"] if r.get("nan_predictions")]
+    for r in nan_runs:
+        lines.append(f"warning: {r['track']} at {r['speed_mph']:g} mph: the model predicted NaN "
+                     f"or infinite steering on {r['nan_predictions']} frame(s) (driven straight)")
     for key, total in report["totals"].items():
         lines.append(f"{key}: {total['laps_completed']}/{total['laps_target']} laps "
                      f"({total['laps_completed_pct']:.0f} %), {total['interventions']} "

@@ -42,8 +42,9 @@ SECTION_TITLES = {
     "timings": "8. Run timings",
 }
 #: Sections only in the report when asked for (``report --real-log``) or when the run has
-#: them (``dagger.json``).
-OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)", "dagger": "DAgger"}
+#: them (``dagger.json``, ``bench.json``).
+OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)", "dagger": "DAgger",
+                           "bench": "Benchmark"}
 
 
 @dataclass(frozen=True)

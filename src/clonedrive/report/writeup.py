@@ -11,6 +11,8 @@ results), with figures made from the run. It finds, each optional:
   ``dataset.json``, ``steering_before.png`` / ``steering_after.png``; see ``model.train``);
 - the evaluation folder: ``RUN_DIR/eval/``, ``<training folder>/eval/`` or ``RUN_DIR`` itself,
   holding ``eval.json`` (see ``evaluate.rollout``) with its maps, off-road frames and videos;
+- ``RUN_DIR/bench.json``, ``RUN_DIR/bench/bench.json`` or ``RUN_DIR/bench/*/bench.json``:
+  ``clonedrive bench``'s leaderboards (section "Benchmark");
 - ``RUN_DIR/demo.json``: stage timings, ``{"stages": {"record": 12.5, ...}}`` or
   ``{"stages": [{"name": "record", "seconds": 12.5}, ...]}`` (``timings`` / ``timings_s``
   are read too).
@@ -21,9 +23,9 @@ the report is written whatever the run holds. Figures go to ``OUT/report/*.png``
 
 This module puts the document together; each section is a module of
 :mod:`clonedrive.report.sections` (``data``, ``balance``, ``network``, ``training``,
-``results`` with ``failures``, ``expert``, ``saliency``, ``dagger``, ``timings``, and
-``intro``, built last from what the others
-found), sharing a :class:`~clonedrive.report.context.ReportContext`.
+``results`` with ``failures``, ``expert``, ``saliency``, ``dagger``, ``bench``, ``timings``,
+and ``intro``, built last from what the others found), sharing a
+:class:`~clonedrive.report.context.ReportContext`.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from clonedrive.report.context import (
 from clonedrive.report.document import Document, Section, to_html, to_markdown
 from clonedrive.report.sections import (
     balance,
+    bench,
     dagger,
     data,
     expert,
@@ -75,6 +78,7 @@ SECTIONS: tuple[tuple[str, Callable[[ReportContext], list[Section]]], ...] = (
     ("saliency", saliency.build),
     ("realdata", realdata.build),
     ("dagger", dagger.build),
+    ("bench", bench.build),
     ("timings", timings.build),
 )
 

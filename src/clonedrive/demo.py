@@ -228,15 +228,14 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
 
     t0 = time.perf_counter()
     policy = load_policy(train_dir / "model.keras", slow_in_curves=eval_config.slow_in_curves)
-    reports = []
-    for runs in _evaluation_groups(config, eval_config):
+    parts = _evaluation_groups(config, eval_config)
+    for runs in parts:
         _say(progress, "[evaluate] " + ", ".join(
             f"{t} at {v:g} mph" for t in runs.tracks for v in runs.speeds_mph)
              + (f"{', ' if runs.tracks else ''}{runs.unseen} unseen tracks at "
                 f"{runs.unseen_speed_mph or runs.speeds_mph[0]:g} mph" if runs.unseen else ""))
-        reports.append(evaluate(policy, runs, out / "eval" / "part", progress=progress,
-                                model_path=str(train_dir / "model.keras")))
-    report = _merge_reports(reports, out / "eval")
+    report = evaluate(policy, parts, out / "eval", progress=progress,
+                      model_path=str(train_dir / "model.keras"))
     stage("evaluate", time.perf_counter() - t0, totals=report["totals"])
     _say(progress, format_table(report))
 
@@ -258,31 +257,6 @@ def _evaluation_groups(config: DemoConfig, base):
         replace(base, tracks=("mountain",), speeds_mph=(15.0, 25.0), laps=1, unseen=0),
         replace(base, tracks=(), speeds_mph=(20.0,), laps=1, video=False),
     ]
-
-
-def _merge_reports(reports: list[dict], eval_dir: Path) -> dict:
-    """Move each part's files into ``eval_dir`` and write one eval.json for all runs."""
-    import shutil
-
-    from clonedrive.evaluate.rollout import _totals
-
-    part = eval_dir / "part"
-    runs = []
-    for report in reports:
-        runs += report["runs"]
-    eval_dir.mkdir(parents=True, exist_ok=True)
-    for path in sorted(part.rglob("*")):
-        if path.is_file() and path.name not in ("eval.json", "config.json"):
-            target = eval_dir / path.relative_to(part)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            path.replace(target)
-    shutil.copy2(part / "config.json", eval_dir / "config.json")
-    shutil.rmtree(part)
-    merged = dict(reports[0])
-    merged["runs"] = runs
-    merged["totals"] = _totals(runs)
-    write_json_atomic(eval_dir / "eval.json", merged)
-    return merged
 
 
 def _read_json(path: Path) -> dict:

@@ -138,3 +138,36 @@ def test_augment_batch_with_nothing_enabled_is_identity() -> None:
 def test_augment_batch_rejects_non_uint8() -> None:
     with pytest.raises(ValueError, match="uint8 images"):
         augment_batch(np.zeros((1, 160, 320, 3), np.float32), np.zeros(1), np.random.default_rng())
+
+
+def test_rows_compute_only_the_rows_a_cropping_network_sees_and_the_same_values() -> None:
+    frames = _frames(16, seed=5)
+    steering = np.linspace(-0.4, 0.4, 16).astype(np.float32)
+    mirror = np.arange(16) % 3 == 0
+    full, full_labels = augment_batch(frames, steering, np.random.default_rng(2), mirror=mirror)
+    part, part_labels = augment_batch(frames, steering, np.random.default_rng(2), mirror=mirror,
+                                      rows=(80, 135))
+    np.testing.assert_array_equal(part[:, 80:135], full[:, 80:135])
+    np.testing.assert_array_equal(part_labels, full_labels)
+    assert not part[:, :80].any() and not part[:, 135:].any()
+    # Shadows and vertical shifts happened inside the window (the test is not vacuous).
+    assert not np.array_equal(part[:, 80:135], frames[:, 80:135])
+    with pytest.raises(ValueError, match="rows"):
+        augment_batch(frames, steering, np.random.default_rng(2), rows=(100, 200))
+
+
+def test_a_network_gives_the_same_output_on_row_windowed_batches() -> None:
+    """What makes `train` augment only the cropped rows: the network sees identical input."""
+    from clonedrive.model.architectures import build_model
+    from clonedrive.model.train import visible_rows
+
+    frames = _frames(8, seed=6)
+    steering = np.zeros(8, np.float32)
+    for name, crop_top in (("fast", 80), ("seed", 60)):
+        model = build_model(name, crop_top_px=crop_top)
+        rows = visible_rows(model)
+        assert rows == (crop_top, 135)
+        full, _ = augment_batch(frames, steering, np.random.default_rng(4))
+        part, _ = augment_batch(frames, steering, np.random.default_rng(4), rows=rows)
+        np.testing.assert_array_equal(model.predict_on_batch(part.astype(np.float32)),
+                                      model.predict_on_batch(full.astype(np.float32)))

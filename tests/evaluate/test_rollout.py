@@ -163,3 +163,25 @@ def test_runs_spread_over_worker_processes_give_the_same_results(tmp_path):
         # Panda3D's software renderer may differ in a few edge pixels between the first and a
         # later simulator of a process, and the network's steering may follow them.
         assert two["mean_abs_cte_m"] == pytest.approx(one["mean_abs_cte_m"], abs=0.05)
+
+
+def test_parts_are_one_evaluation_scheduled_on_one_pool(tmp_path):
+    """The demo's shape: a part with two laps on a built-in track, a part on an unseen track
+    with one lap; one eval.json holds both parts' runs in order, as each part alone gives them."""
+    model_file = tmp_path / "tiny.keras"
+    build_tiny_model(seed=3).save(model_file)
+    policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=15.0)
+    common = {"scenery": False, "max_seconds": 3.0, "workers": 2}
+    parts = [EvalConfig(tracks=("lake",), speeds_mph=(15.0, 20.0), laps=2, **common),
+             EvalConfig(tracks=(), speeds_mph=(15.0,), laps=1, unseen=1, **common)]
+    both = evaluate(policy, parts, tmp_path / "both", progress=False, model_path=str(model_file))
+    alone = [evaluate(policy, part, tmp_path / f"part{i}", progress=False,
+                      model_path=str(model_file))["runs"] for i, part in enumerate(parts)]
+    assert [(r["track"], r["speed_mph"], r["laps_target"]) for r in both["runs"]] == \
+        [("lake", 15.0, 2), ("lake", 20.0, 2), ("gen:1000", 15.0, 1)]
+    assert both["complete"] and both["totals"]["unseen"]["runs"] == 1
+    keys = ("laps_completed", "interventions", "distance_m", "mean_abs_cte_m")
+    assert [[r[k] for k in keys] for r in both["runs"]] == \
+        [[r[k] for k in keys] for r in alone[0] + alone[1]]
+    saved = json.loads((tmp_path / "both" / "config.json").read_text(encoding="utf-8"))
+    assert [part["laps"] for part in saved["parts"]] == [2, 1]

@@ -59,13 +59,16 @@ def shift_and_flip(
     *,
     steering_per_px: float = STEERING_PER_PX,
     mirror: np.ndarray | None = None,
+    rows: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift frame ``i`` by ``dx_px[i]`` pixels right and ``dy_px[i]`` pixels down (edge
     pixels repeated into the gap), then mirror it if ``flip[i]``; labels follow (module doc).
 
     ``mirror[i]`` means frame ``i`` is stored unmirrored but its label already belongs to
     the mirrored picture (a recipe's flipped copy): it is mirrored first, label untouched.
-    Every output pixel is read once from ``images``; returns new arrays.
+    Every output pixel is read once from ``images``; returns new arrays. With ``rows`` =
+    ``(first, end)`` only those output rows are computed (the rows a network that crops the
+    rest sees), exactly as without it; the others are 0.
     """
     count, height, width = images.shape[:3]
     dx = np.asarray(dx_px, dtype=np.int64).reshape(count)
@@ -77,10 +80,12 @@ def shift_and_flip(
     if mirror is not None:
         mirror = np.asarray(mirror, dtype=bool).reshape(count)
         columns = np.where(mirror[:, None], width - 1 - columns, columns)
-    rows = np.clip(np.arange(height)[None, :] - dy[:, None], 0, height - 1)  # (N, H)
-    out = np.empty_like(images)
+    first, end = _row_window(rows, height)
+    rows = np.clip(np.arange(first, end)[None, :] - dy[:, None], 0, height - 1)  # (N, end-first)
+    out = np.empty_like(images) if (first, end) == (0, height) else np.zeros_like(images)
     for index in range(count):  # per image: two cheap takes beat one (N, H, W) gather
-        out[index] = images[index].take(rows[index], axis=0).take(columns[index], axis=1)
+        out[index, first:end] = images[index].take(rows[index], axis=0).take(columns[index],
+                                                                            axis=1)
     labels = np.asarray(steering, dtype=np.float32) + dx.astype(np.float32) * steering_per_px
     labels = np.where(flip, -labels, labels) + 0.0
     return out, labels.astype(np.float32)
@@ -94,6 +99,7 @@ def shade(
     bottom_x: np.ndarray,
     darkness: np.ndarray,
     right_side: np.ndarray,
+    rows: tuple[int, int] | None = None,
 ) -> np.ndarray:
     """Scale frame ``i`` by ``brightness[i]``; if ``shadow[i]``, also by ``darkness[i]`` on
     one side of the line from (``top_x[i]``, top row) to (``bottom_x[i]``, bottom row): the
@@ -101,24 +107,37 @@ def shade(
 
     A pixel value ``v`` becomes ``min(255, round(v * factor))``, through a 256-entry lookup
     table per image (OpenCV ``LUT``), which is several times faster than float arithmetic.
+    With ``rows`` = ``(first, end)`` only those rows are computed (the others are 0).
     """
     count, height, width = images.shape[:3]
-    out = np.empty_like(images)
+    first, end = _row_window(rows, height)
+    out = np.empty_like(images) if (first, end) == (0, height) else np.zeros_like(images)
     for index in range(count):
-        cv2.LUT(images[index], _scale_table(brightness[index]), dst=out[index])
+        cv2.LUT(images[index, first:end], _scale_table(brightness[index]),
+                dst=out[index, first:end])
     shadowed = np.flatnonzero(np.asarray(shadow, dtype=bool))
     if shadowed.size == 0:
         return out
-    fraction = np.linspace(0.0, 1.0, height, dtype=np.float32)[None, :]
+    fraction = np.linspace(0.0, 1.0, height, dtype=np.float32)[None, first:end]
     top_x = np.asarray(top_x, dtype=np.float32)[shadowed]
     bottom_x = np.asarray(bottom_x, dtype=np.float32)[shadowed]
     boundary = top_x[:, None] + (bottom_x - top_x)[:, None] * fraction  # (k, H)
     inside = np.arange(width, dtype=np.float32)[None, None, :] < boundary[:, :, None]
     inside ^= np.asarray(right_side, dtype=bool)[shadowed][:, None, None]
     for number, index in enumerate(shadowed):
-        dark = cv2.LUT(images[index], _scale_table(brightness[index] * darkness[index]))
-        np.copyto(out[index], dark, where=inside[number][:, :, None])
+        dark = cv2.LUT(images[index, first:end],
+                       _scale_table(brightness[index] * darkness[index]))
+        np.copyto(out[index, first:end], dark, where=inside[number][:, :, None])
     return out
+
+
+def _row_window(rows: tuple[int, int] | None, height: int) -> tuple[int, int]:
+    if rows is None:
+        return 0, height
+    first, end = int(rows[0]), int(rows[1])
+    if not 0 <= first < end <= height:
+        raise ValueError(f"rows {rows} outside the frame's {height} rows")
+    return first, end
 
 
 def _scale_table(factor: float) -> np.ndarray:
@@ -133,12 +152,15 @@ def augment_batch(
     config: AugmentConfig | None = None,
     *,
     mirror: np.ndarray | None = None,
+    rows: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Randomly shift, flip, brighten/darken and shadow a batch of uint8 RGB frames.
 
     Returns new ``(images uint8 (N, H, W, 3), steering float32 (N,))``; the inputs are not
     modified. All random numbers come from ``rng``, drawn in a fixed order. ``mirror``: see
     :func:`shift_and_flip` (frames to mirror first, their labels already negated).
+    ``rows``: compute only these output rows, the same as without it (others 0): a network
+    that crops the frame never sees the rest, and it is most of the work.
     """
     config = config or AugmentConfig()
     images = np.asarray(images)
@@ -155,6 +177,8 @@ def augment_batch(
     darkness = rng.uniform(config.shadow_darkness_min, config.shadow_darkness_max, size=count)
     right_side = rng.random(count) < 0.5
     shifted, labels = shift_and_flip(
-        images, steering, dx, dy, flip, steering_per_px=config.steering_per_px, mirror=mirror
+        images, steering, dx, dy, flip, steering_per_px=config.steering_per_px, mirror=mirror,
+        rows=rows,
     )
-    return shade(shifted, brightness, shadow, top_x, bottom_x, darkness, right_side), labels
+    return shade(shifted, brightness, shadow, top_x, bottom_x, darkness, right_side,
+                 rows=rows), labels

@@ -137,6 +137,10 @@ class DrivingBatches(keras.utils.PyDataset):
     ``(seed, epoch)``; with ``augment`` each batch is augmented with a generator drawn from
     ``(seed, epoch, batch index)``, so results do not depend on worker timing and a resumed
     run sees the same batches it would have seen. ``epoch`` advances in ``on_epoch_end``.
+
+    ``rows`` = ``(first, end)``: the rows of the frame the network looks at (its crop). Set,
+    augmentation computes only those rows, with the same values, and leaves the others 0, so
+    training is the same at a third of the work (``model.train`` sets it from the network).
     """
 
     def __init__(
@@ -152,6 +156,7 @@ class DrivingBatches(keras.utils.PyDataset):
         workers: int = 1,
         max_queue_size: int = 4,
         speed_head: bool = False,
+        rows: tuple[int, int] | None = None,
     ) -> None:
         super().__init__(workers=workers, use_multiprocessing=False, max_queue_size=max_queue_size)
         if batch_size < 1:
@@ -166,6 +171,7 @@ class DrivingBatches(keras.utils.PyDataset):
         self.seed = int(seed)
         self.with_weights = bool(np.any(samples.weight != 1.0))
         self.speed_head = bool(speed_head)
+        self.rows = rows
         self.epoch = int(epoch)
         self._order = self._make_order()
 
@@ -191,7 +197,7 @@ class DrivingBatches(keras.utils.PyDataset):
         if self.augment is not None:
             rng = np.random.default_rng([self.seed, self.epoch, index])
             images, steering = augment_batch(
-                images, steering, rng, self.augment, mirror=mirrored
+                images, steering, rng, self.augment, mirror=mirrored, rows=self.rows
             )
         else:
             for position in np.flatnonzero(mirrored):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -82,46 +83,67 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
     return frame
 
 
-def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool = True,
-             model_path: str | None = None, model_options: dict | None = None) -> dict:
+def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | Path, *,
+             progress: bool = True, model_path: str | None = None,
+             model_options: dict | None = None) -> dict:
     """Drive every run of ``config`` with ``policy`` (a NetworkPolicy) and write the results.
 
     Writes ``config.json``, ``eval.json`` (again after each finished run), a map PNG per run,
     off-road frames and (with ``video``) an mp4 per built-in-track run, under ``out_dir``.
     Returns the final eval.json content.
 
+    ``config`` may also be several configs (parts: say, two laps with video on the built-in
+    tracks and one lap without on unseen ones); their runs go into one eval.json, in order,
+    and are all scheduled on one pool, so no worker waits for a part to finish.
+
     With several workers (``config.workers``, default one per CPU core) and the model's file
     (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.network.load_policy`'s
-    ``trust`` and ``runtime``), the runs are cut into groups before anything drives, and each
-    group is driven in lock-step in a fresh worker process that loads the model itself.
+    ``trust`` and ``runtime``), each part's runs are cut into groups before anything drives
+    (at most ``batch`` runs, and no more groups than workers need), and each group is driven in
+    lock-step in a fresh worker process that loads the model itself; the groups start longest
+    first. The results do not depend on that order.
     """
+    from clonedrive.config import config_to_dict
     from clonedrive.progress import progress_bar
     from clonedrive.workers import default_workers, run_tasks
 
+    parts = [config] if isinstance(config, EvalConfig) else list(config)
+    if not parts:
+        raise ValueError("nothing to evaluate: no config given")
+    first = parts[0]
+    if any(part.slow_in_curves != first.slow_in_curves for part in parts):
+        raise ValueError("the parts of one evaluation must agree on slow_in_curves")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    specs = run_specs(config)
+    part_specs = [run_specs(part) for part in parts]
+    specs = [spec for specs in part_specs for spec in specs]
+    part_of = [number for number, specs in enumerate(part_specs) for _ in specs]
     speed_head = bool(getattr(policy, "speed_head", False))
     report = {
         "model": model_path,
-        "slow_in_curves": config.slow_in_curves,
+        "slow_in_curves": first.slow_in_curves,
         "speed_head": speed_head,
         "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")
-                         + (", target speed reduced with |steering|" if config.slow_in_curves
+                         + (", target speed reduced with |steering|" if first.slow_in_curves
                             else ""),
         "complete": False,
         "runs": [],
         "totals": _totals([]),
     }
-    save_config(config, out / "config.json")
+    if len(parts) == 1:
+        save_config(first, out / "config.json")
+    else:
+        write_json_atomic(out / "config.json",
+                          {"parts": [config_to_dict(part) for part in parts]})
     finished: dict[int, dict] = {}
 
     def publish(index: int, result: dict) -> None:
-        if config.expert_reference:
-            result.update(against_expert(result, max_seconds=config.max_seconds))
+        part = parts[part_of[index]]
+        if part.expert_reference:
+            result.update(against_expert(result, max_seconds=part.max_seconds))
         finished[index] = result
         report["runs"] = [finished[i] for i in sorted(finished)]
         report["totals"] = _totals(report["runs"])
@@ -129,27 +151,36 @@ def evaluate(policy, config: EvalConfig, out_dir: str | Path, *, progress: bool 
         write_json_atomic(out / "eval.json", report)
 
     names = _run_names(specs)
-    workers = config.workers or default_workers()
+    workers = first.workers or default_workers()
     if model_path is None:
         workers = 1  # an in-memory model cannot be loaded by another process
-    size = max(1, min(config.batch, math.ceil(len(specs) / workers)))
-    groups = [list(enumerate(specs[start:start + size], start=start))
-              for start in range(0, len(specs), size)]
-    expected = [sum(_expected_steps(spec, config) for _, spec in group) for group in groups]
+    groups: list[tuple[EvalConfig, list[tuple[int, RunSpec]]]] = []
+    offset = 0
+    for part, specs_of_part in zip(parts, part_specs, strict=True):
+        size = max(1, min(part.batch, math.ceil(len(specs_of_part) / workers)))
+        for start in range(0, len(specs_of_part), size):
+            chunk = specs_of_part[start:start + size]
+            groups.append((part, list(enumerate(chunk, start=offset + start))))
+        offset += len(specs_of_part)
+    expected = [sum(_expected_steps(spec, part) for _, spec in group) for part, group in groups]
     bar = progress_bar(total=sum(expected), unit="step", desc="evaluate", enabled=progress)
     try:
         if workers == 1 or len(groups) == 1:
-            for group in groups:
-                _drive_group(policy, group, names, config, out, bar, publish)
+            for part, group in groups:
+                _drive_group(policy, group, names, part, out, bar, publish)
         else:
+            # Longest first (a video frame costs about half a step more), so that the last
+            # group to start is a short one.
+            order = sorted(range(len(groups)), key=lambda i: -expected[i] * (
+                1.5 if groups[i][0].video and not groups[i][1][0][1].unseen else 1.0))
             tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
-                      "group": group, "names": names, "config": config, "out": str(out)}
-                     for group in groups]
+                      "group": groups[i][1], "names": names, "config": groups[i][0],
+                      "out": str(out)} for i in order]
 
             def on_done(task: int, results: list[tuple[int, dict]]) -> None:
                 for index, result in results:
                     publish(index, result)
-                bar.update(expected[task])
+                bar.update(expected[order[task]])
 
             run_tasks(_drive_group_task, tasks, workers=workers, on_done=on_done)
     finally:

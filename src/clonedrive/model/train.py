@@ -191,6 +191,8 @@ def train(
                 copied = load_initial_weights(model, config.init_from)
                 _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")
             _compile(keras, model, config)
+        # Augment only the rows the network keeps after its crop (the same pixels, less work).
+        train_batches.rows = visible_rows(model)
         recorder = _run_recorder_class()(out, config, history, state)
         if epochs_done < config.epochs and not recorder.should_stop():
             model.fit(
@@ -218,6 +220,21 @@ def train(
         history=list(recorder.history),
         dataset=data.report,
     )
+
+
+def visible_rows(model) -> tuple[int, int] | None:
+    """``(first, end)``: the rows of a 160-row frame that ``model`` looks at, when its first
+    layer after the input is a ``Cropping2D`` (as in all of ours); None when it sees them all
+    or crops otherwise."""
+    from clonedrive.udacity_spec import IMAGE_SHAPE
+
+    layers = [layer for layer in model.layers if type(layer).__name__ != "InputLayer"]
+    if not layers or type(layers[0]).__name__ != "Cropping2D" or getattr(
+            layers[0], "data_format", "channels_last") != "channels_last":
+        return None
+    (top, bottom), _ = layers[0].cropping
+    first, end = int(top), IMAGE_SHAPE[0] - int(bottom)
+    return (first, end) if 0 <= first < end <= IMAGE_SHAPE[0] else None
 
 
 def _compile(keras, model, config: TrainConfig) -> None:

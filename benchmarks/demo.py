@@ -1,5 +1,5 @@
 """Demo timings: `clonedrive demo --quick` (target <= 3 min) and, with --full, the default demo
-(target <= 30 min on this 2-core machine), from an empty folder each, with stage timings and the
+(target <= 15 min on this 2-core machine), from an empty folder each, with stage timings and the
 default demo's driving results.
 
 Run: python benchmarks/demo.py [--full] [--keep DIR]
@@ -46,7 +46,7 @@ def main() -> None:
             result["default_runs"] = [
                 {key: run[key] for key in ("track", "speed_mph", "laps_completed",
                                            "laps_target", "interventions")} for run in runs]
-            print(f"demo (default): {full['wall_seconds']:.0f} s (target <= 1800 s); stages "
+            print(f"demo (default): {full['wall_seconds']:.0f} s (target <= 900 s); stages "
                   + ", ".join(f"{k} {v:.0f} s" for k, v in result["default_stages_s"].items()))
             for run in result["default_runs"]:
                 print(f"  {run['track']:<10} {run['speed_mph']:>4g} mph: "

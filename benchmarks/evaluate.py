@@ -82,6 +82,12 @@ def main() -> None:
     single, single_steps = closed_loop_steps_per_s(policy, 1, 40.0)
     batched, batched_steps = closed_loop_steps_per_s(policy, 8, 20.0)
     render_only = render_only_steps_per_s(batched_steps)
+    # The same loop with the network run by ONNX Runtime (evaluate --runtime onnx).
+    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+
+    onnx_policy = NetworkPolicy(OnnxModel(onnx_bytes(model)), set_speed_mph=20.0)
+    onnx_policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))
+    batched_onnx, _ = closed_loop_steps_per_s(onnx_policy, 8, 20.0)
     with_video, _ = closed_loop_steps_per_s(policy, 1, 40.0, video=True)
     loop_ratio = batched / render_only
     video_ratio = with_video / single
@@ -92,6 +98,8 @@ def main() -> None:
     print(f"  8 runs lock-step: {batched:7.1f} steps/s ({batched_steps} steps)")
     print(f"  render only:      {render_only:7.1f} steps/s (center camera, same track) -> "
           f"loop_ratio {loop_ratio:.2f} (target >= 0.8)")
+    print(f"  8 runs, ONNX Runtime: {batched_onnx:7.1f} steps/s -> loop_ratio_onnx "
+          f"{batched_onnx / render_only:.2f}")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -116,6 +124,7 @@ def main() -> None:
     steps = max(single, batched)
     print(f"target >= 150 steps/s: {'met' if steps >= 150 else 'NOT met'} ({steps:.0f})")
     print(json.dumps({"loop_ratio": round(loop_ratio, 3),
+                      "loop_ratio_onnx": round(batched_onnx / render_only, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),
                       "steps_per_s_video": round(with_video, 1),

@@ -1,8 +1,10 @@
 """Shared test set-up: the project's default Keras backend before any test module imports keras,
-and the fixtures several test files need (a free port, a recorded Udacity frame, tiny models)."""
+SIGINT deliverable to the clonedrive processes the tests start, and the fixtures several test
+files need (a free port, a recorded Udacity frame, tiny models)."""
 
 from __future__ import annotations
 
+import signal
 import socket
 from pathlib import Path
 
@@ -11,6 +13,15 @@ import pytest
 from clonedrive.keras_backend import choose_backend
 
 choose_backend()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A shell starts a background job (``pytest ... &``) with SIGINT ignored, and every child
+    inherits that, so the tests that stop a real ``clonedrive`` process with SIGINT (Ctrl-C)
+    would wait for it in vain. An exec resets a handled signal to its default, so handling it
+    here gives the children Python's own Ctrl-C handling back."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 #: Frames the Udacity simulator recorded (320x160 JPEGs, quality 75).

@@ -15,6 +15,9 @@ is extra work beside the loop, not part of it.
   camera on the same track (scene built, one frame rendered and read back per step, nothing
   else): everything but rendering is overhead. Target >= 0.8.
 - ``video_ratio``: closed-loop steps/s of one run with ``--video`` / without. Target >= 0.8.
+- ``loop_ratio_onnx``: ``loop_ratio`` with the network run by ONNX Runtime.
+- ``loop_ratio_steady``: the same 8 cars stepped by the episode runner once their simulators are
+  built (no scene builds, no map plots) / rendering frames once the scene is built.
 
 Run: python benchmarks/evaluate.py [MODEL.keras]   (default: an untrained `fast` network; the
 weights do not change the cost, only where the car goes)
@@ -49,7 +52,38 @@ def closed_loop_steps_per_s(policy, batch: int, seconds: float, *,
     return steps / wall, steps
 
 
-def render_only_steps_per_s(steps: int, track_name: str = "lake") -> float:
+def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
+    """Closed-loop steps/s of ``batch`` cars in lock-step once built: the runner's stepping
+    alone (render, predict, control, physics, rules), without scene builds or map plots."""
+    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.rules import EpisodeRules
+    from clonedrive.episode.runner import Episode, Runner
+    from clonedrive.sim.simulator import SimConfig, Simulator
+
+    speeds = [20.0 + 0.5 * i for i in range(batch)]
+    sims = [Simulator("lake", SimConfig(cameras=("center",))) for _ in speeds]
+    try:
+        episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed, max_seconds=seconds),
+                            track="lake", seed=0) for sim, speed in zip(sims, speeds,
+                                                                         strict=True)]
+        runner = Runner(episodes, NetworkDriver(policy, speeds))
+        runner.reset()
+        steps = 0
+
+        def count(_step) -> None:
+            nonlocal steps
+            steps += 1
+
+        start = time.perf_counter()
+        runner.run(count)
+        return steps / (time.perf_counter() - start)
+    finally:
+        for sim in sims:
+            sim.close()
+
+
+def render_only_steps_per_s(steps: int, track_name: str = "lake", *,
+                            steady: bool = False) -> float:
     """The reference: the center camera alone, built and rendered along the centreline."""
     from clonedrive.sim.cameras import CameraRig
     from clonedrive.sim.scene import Scene
@@ -61,6 +95,8 @@ def render_only_steps_per_s(steps: int, track_name: str = "lake") -> float:
     step_m = 20.0 * MPH_TO_MPS / CONTROL_HZ
     start = time.perf_counter()
     with Scene(track) as scene, CameraRig(scene, cameras=("center",)) as rig:
+        if steady:  # time the frames only, not the scene build
+            start = time.perf_counter()
         for i in range(steps):
             s = i * step_m
             x, y, z = track.point(s)
@@ -88,6 +124,9 @@ def main() -> None:
     onnx_policy = NetworkPolicy(OnnxModel(onnx_bytes(model)), set_speed_mph=20.0)
     onnx_policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))
     batched_onnx, _ = closed_loop_steps_per_s(onnx_policy, 8, 20.0)
+    # Steady state: the loop once its 8 simulators are built, against rendering once built.
+    steady = steady_loop_steps_per_s(policy, 8, 20.0)
+    render_steady = render_only_steps_per_s(batched_steps, steady=True)
     with_video, _ = closed_loop_steps_per_s(policy, 1, 40.0, video=True)
     loop_ratio = batched / render_only
     video_ratio = with_video / single
@@ -100,6 +139,9 @@ def main() -> None:
           f"loop_ratio {loop_ratio:.2f} (target >= 0.8)")
     print(f"  8 runs, ONNX Runtime: {batched_onnx:7.1f} steps/s -> loop_ratio_onnx "
           f"{batched_onnx / render_only:.2f}")
+    print(f"  steady state (built simulators, no maps): {steady:7.1f} steps/s against "
+          f"{render_steady:7.1f} frames/s rendering -> loop_ratio_steady "
+          f"{steady / render_steady:.2f}")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -125,6 +167,7 @@ def main() -> None:
     print(f"target >= 150 steps/s: {'met' if steps >= 150 else 'NOT met'} ({steps:.0f})")
     print(json.dumps({"loop_ratio": round(loop_ratio, 3),
                       "loop_ratio_onnx": round(batched_onnx / render_only, 3),
+                      "loop_ratio_steady": round(steady / render_steady, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),
                       "steps_per_s_video": round(with_video, 1),

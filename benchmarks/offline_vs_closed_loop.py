@@ -47,7 +47,7 @@ def held_out(folder: Path) -> list[Path]:
 
 
 def main() -> int:
-    from clonedrive.bench.run import _offline_rows, offline_mse
+    from clonedrive.bench.run import offline_mse, offline_rows
     from clonedrive.bench.scores import correlation
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -65,7 +65,7 @@ def main() -> int:
         models.append(("plain cloning", report["plain"]))
     with tempfile.TemporaryDirectory() as temporary:
         data = args.data or Path(temporary)
-        rows = _offline_rows(tuple(str(f) for f in held_out(data)))
+        rows = offline_rows(tuple(str(f) for f in held_out(data)))
         mse = {}
         for name, row in models:
             if not Path(row["model"]).is_file():

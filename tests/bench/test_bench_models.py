@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from clonedrive.bench.driving import drive_batch
-from clonedrive.bench.run import BenchConfig, _offline_rows, offline_mse
+from clonedrive.bench.run import BenchConfig, offline_mse, offline_rows
 from clonedrive.bench.suite import EpisodeSpec
 from clonedrive.sim.conditions import Conditions
 
@@ -20,7 +20,7 @@ FIXTURE = Path(__file__).parents[1] / "fixtures" / "udacity" / "lake_posix_mixed
 
 def test_a_students_model_is_benched_only_with_trust(tmp_path: Path) -> None:
     path = str(write_keras2_h5(tmp_path / "model.h5", student_model(seed=2)))
-    rows = _offline_rows((str(FIXTURE),))[:16]
+    rows = offline_rows((str(FIXTURE),))[:16]
     with pytest.raises(ValueError, match="--trust-model"):
         offline_mse(path, rows)
     assert offline_mse(path, rows, trust=True) >= 0.0

@@ -194,7 +194,7 @@ def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchCon
 
 def add_offline(report: dict, config: BenchConfig) -> None:
     """Each model's MSE on held-out recordings, and its correlation with closed-loop figures."""
-    rows = _offline_rows(config.offline_data)
+    rows = offline_rows(config.offline_data)
     for model in report["models"].values():
         model["offline_mse"] = offline_mse(model["path"], rows, trust=config.trust_model,
                                            runtime=config.runtime)
@@ -209,7 +209,7 @@ def add_offline(report: dict, config: BenchConfig) -> None:
     }
 
 
-def _offline_rows(folders: tuple[str, ...]) -> list:
+def offline_rows(folders: tuple[str, ...]) -> list:
     from clonedrive.data.driving_log import read_driving_log
 
     rows = []

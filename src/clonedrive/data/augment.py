@@ -81,11 +81,11 @@ def shift_and_flip(
         mirror = np.asarray(mirror, dtype=bool).reshape(count)
         columns = np.where(mirror[:, None], width - 1 - columns, columns)
     first, end = _row_window(rows, height)
-    rows = np.clip(np.arange(first, end)[None, :] - dy[:, None], 0, height - 1)  # (N, end-first)
+    sources = np.clip(np.arange(first, end)[None, :] - dy[:, None], 0, height - 1)  # (N, rows)
     out = np.empty_like(images) if (first, end) == (0, height) else np.zeros_like(images)
     for index in range(count):  # per image: two cheap takes beat one (N, H, W) gather
-        out[index, first:end] = images[index].take(rows[index], axis=0).take(columns[index],
-                                                                            axis=1)
+        out[index, first:end] = images[index].take(sources[index], axis=0).take(
+            columns[index], axis=1)
     labels = np.asarray(steering, dtype=np.float32) + dx.astype(np.float32) * steering_per_px
     labels = np.where(flip, -labels, labels) + 0.0
     return out, labels.astype(np.float32)

@@ -194,7 +194,7 @@ class NetworkPolicy:
                 f"expected a uint8 RGB image of shape {IMAGE_SHAPE}, "
                 f"got {image_rgb.dtype} {image_rgb.shape}"
             )
-        steering, learned = self._predict(image_rgb[np.newaxis])
+        steering, learned, _ = self._predict(image_rgb[np.newaxis])
         steer = self.steering_filter.update(float(steering[0]))
         self.controller.set_speed_mph = self.target_speed_mph(
             steer, learned_speed_mph=None if learned is None else float(learned[0]))
@@ -217,17 +217,19 @@ class NetworkPolicy:
         if len(images) == 0:
             empty = np.zeros(0, dtype=np.float32)
             return empty, (empty.copy() if self.speed_head else None)
-        chunks, nonfinite = [], []
-        for start in range(0, len(images), self.batch_size):
-            chunks.append(self._predict(images[start : start + self.batch_size]))
-            nonfinite.append(self._last_chunk_nonfinite)
-        self.last_nonfinite = np.concatenate(nonfinite)
+        chunks = [
+            self._predict(images[start : start + self.batch_size])
+            for start in range(0, len(images), self.batch_size)
+        ]
+        self.last_nonfinite = np.concatenate([chunk[2] for chunk in chunks])
         steering = np.concatenate([chunk[0] for chunk in chunks])
         if not self.speed_head:
             return steering, None
         return steering, np.concatenate([chunk[1] for chunk in chunks])
 
-    def _predict(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    def _predict(self, images: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """(steering, learned speed or None, which frames' steering was NaN or infinite)."""
         # predict_on_batch runs without gradient tracking and works on every backend. One frame
         # through the seed model on the torch CPU backend: 4.5 ms median against 4.7 ms for
         # model(x, training=False) (benchmarks/server_latency.py; same as under torch.no_grad()).
@@ -238,15 +240,16 @@ class NetworkPolicy:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
         # A NaN prediction steers straight rather than poisoning the controls; it is counted.
-        self._last_chunk_nonfinite = ~np.isfinite(steering)
-        self.nan_predictions += int(np.count_nonzero(self._last_chunk_nonfinite))
+        nonfinite = ~np.isfinite(steering)
+        self.nan_predictions += int(np.count_nonzero(nonfinite))
         steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
         if not self.speed_head:
-            return steering, None
+            return steering, None, nonfinite
         speed = np.asarray(outputs[1]).reshape(len(images)).astype(np.float32)
         # A NaN speed means "no opinion": the set speed (the cap) applies.
         speed = np.nan_to_num(speed, nan=1.0, posinf=1.0, neginf=0.0)
-        return steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH)
+        return (steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH),
+                nonfinite)
 
 
 def has_speed_head(model: keras.Model) -> bool:

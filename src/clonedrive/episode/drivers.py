@@ -66,10 +66,8 @@ class NetworkDriver:
             ) -> list[Decision]:
         frames = np.stack([obs.images["center"] for obs in observations])
         steering, learned = self.policy.predict(frames)
-        nonfinite = getattr(self.policy, "last_nonfinite", None)
-        if nonfinite is not None and len(nonfinite) == len(cars):
-            for car, bad in zip(cars, nonfinite, strict=True):
-                self.nan_predictions[car] += int(bad)
+        for car, bad in zip(cars, self.policy.last_nonfinite, strict=True):
+            self.nan_predictions[car] += int(bad)
         decisions = []
         for index, (car, obs, steer) in enumerate(zip(cars, observations, steering, strict=True)):
             steer = self.filters[car].update(float(steer))

@@ -163,16 +163,17 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
             groups.append((part, list(enumerate(chunk, start=offset + start))))
         offset += len(specs_of_part)
     expected = [sum(_expected_steps(spec, part) for _, spec in group) for part, group in groups]
+    # A step with a video frame costs about half a step more (only built-in tracks get video).
+    cost = [steps * (1.5 if part.video and any(not spec.unseen for _, spec in group) else 1.0)
+            for steps, (part, group) in zip(expected, groups, strict=True)]
     bar = progress_bar(total=sum(expected), unit="step", desc="evaluate", enabled=progress)
     try:
         if workers == 1 or len(groups) == 1:
             for part, group in groups:
                 _drive_group(policy, group, names, part, out, bar, publish)
         else:
-            # Longest first (a video frame costs about half a step more), so that the last
-            # group to start is a short one.
-            order = sorted(range(len(groups)), key=lambda i: -expected[i] * (
-                1.5 if groups[i][0].video and not groups[i][1][0][1].unseen else 1.0))
+            # Longest first, so that the last group to start is a short one.
+            order = sorted(range(len(groups)), key=lambda i: -cost[i])
             tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
                       "group": groups[i][1], "names": names, "config": groups[i][0],
                       "out": str(out)} for i in order]

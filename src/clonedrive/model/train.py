@@ -172,15 +172,6 @@ def train(
         _print(progress, data.summary)
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
-        train_batches = DrivingBatches(
-            data.train, data.cache, batch_size=config.batch_size, shuffle=True,
-            augment=AugmentConfig() if config.augment else None, seed=config.seed,
-            epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
-        )
-        val_batches = DrivingBatches(
-            data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
-            speed_head=config.speed_head,
-        )
         if epochs_done > 0:
             model = keras.saving.load_model(out / "last.keras", safe_mode=True)
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
@@ -191,8 +182,17 @@ def train(
                 copied = load_initial_weights(model, config.init_from)
                 _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")
             _compile(keras, model, config)
-        # Augment only the rows the network keeps after its crop (the same pixels, less work).
-        train_batches.rows = visible_rows(model)
+        train_batches = DrivingBatches(
+            data.train, data.cache, batch_size=config.batch_size, shuffle=True,
+            augment=AugmentConfig() if config.augment else None, seed=config.seed,
+            epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
+            # Augment only the rows the network keeps after its crop (same pixels, less work).
+            rows=visible_rows(model),
+        )
+        val_batches = DrivingBatches(
+            data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
+            speed_head=config.speed_head,
+        )
         recorder = _run_recorder_class()(out, config, history, state)
         if epochs_done < config.epochs and not recorder.should_stop():
             model.fit(

@@ -542,6 +542,8 @@ def plot_dagger(report: dict, path: Path) -> Path:
     iterations = [row["iteration"] for row in rows]
     # evaluate's splits (builtin, unseen) or the benchmark's, in the order they first appear.
     splits = list(dict.fromkeys(name for row in rows for name in row["eval"]))
+    if len(splits) == 2 and "overall" in splits:  # "overall" of one split is that split
+        splits.remove("overall")
     palette = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:olive", "tab:cyan")
     colours = {name: palette[index % len(palette)]
                for index, name in enumerate(s for s in splits if s != "overall")}

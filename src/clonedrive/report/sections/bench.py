@@ -57,8 +57,10 @@ def _subsection(ctx: ReportContext, path: Path) -> Section:
     try:
         report = read_json(path)
         suite = report["suite"]
+        if not isinstance(suite, dict):
+            raise ValueError(f"'suite' is {type(suite).__name__}, not an object")
         method_head, method_rows, model_head, model_rows = tables(report)
-    except (KeyError, TypeError, AttributeError, ValueError) as error:
+    except (OSError, KeyError, TypeError, AttributeError, ValueError) as error:
         return Section(f"`{name}`", level=3, blocks=[ctx.note(
             f"`{path}` is not a bench.json this report can read ({error}).")])
     blocks: list = [Paragraph(

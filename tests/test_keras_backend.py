@@ -50,3 +50,17 @@ def test_second_run_after_keras_wrote_its_json(tmp_path) -> None:
     for run in runs:
         assert run.returncode == 0, run.stderr[-2000:]
         assert run.stdout.strip().splitlines()[-1] == keras_backend.DEFAULT_BACKEND
+
+
+def test_compute_threads_sets_and_restores_pytorch_threads() -> None:
+    import torch
+
+    before = torch.get_num_threads()
+    with keras_backend.compute_threads(1):
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == before
+    with keras_backend.compute_threads(None):
+        assert torch.get_num_threads() == before
+    with pytest.raises(RuntimeError), keras_backend.compute_threads(1):
+        raise RuntimeError("restored on the way out too")
+    assert torch.get_num_threads() == before

@@ -13,10 +13,12 @@ named 'tensorflow'". Such a file is ignored.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
@@ -63,3 +65,23 @@ def import_keras() -> ModuleType:
     import keras
 
     return keras
+
+
+@contextlib.contextmanager
+def compute_threads(threads: int | None) -> Iterator[None]:
+    """PyTorch's intra-op threads set to ``threads`` inside the block and restored after it.
+
+    ``None``, or PyTorch not loaded: nothing changes. (Running with fewer threads than cores
+    leaves a core to work beside the network, such as a video encoder: PyTorch's threads wait
+    on each other, so one that shares its core with another process slows them all.)
+    """
+    torch = sys.modules.get("torch")
+    if threads is None or torch is None:
+        yield
+        return
+    before = torch.get_num_threads()
+    torch.set_num_threads(max(1, int(threads)))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)

@@ -13,7 +13,7 @@ pytest.importorskip("onnx")
 pytest.importorskip("onnxruntime")
 
 from clonedrive.drivers.network import NetworkPolicy, load_model, load_policy  # noqa: E402
-from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx  # noqa: E402
+from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx, onnx_bytes  # noqa: E402
 from clonedrive.model.architectures import MODEL_NAMES, build_model  # noqa: E402
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "udacity"
@@ -48,6 +48,25 @@ def test_onnx_runtime_matches_keras_on_real_frames(tmp_path: Path, real_frames,
                                keras_policy.predict_steering(real_frames), atol=PARITY_ABS)
     assert onnx_policy.act(real_frames[0], 5.0) == pytest.approx(
         keras_policy.act(real_frames[0], 5.0), abs=PARITY_ABS)
+
+
+def test_the_policy_hands_each_model_its_own_input_dtype(real_frames) -> None:
+    """Our networks take uint8 frames, in Keras and ONNX alike, so the policy passes them as
+    they are (no float copy for ONNX Runtime to round back); a float32-input model (a Udacity
+    user's own) gets float32. The steering is the same either way."""
+    import keras
+
+    model = build_model("fast", seed=2)
+    onnx_policy = NetworkPolicy(OnnxModel(onnx_bytes(model)))
+    assert NetworkPolicy(model).input_dtype == onnx_policy.input_dtype == np.uint8
+    inputs = keras.Input((160, 320, 3), dtype="float32")
+    float_model = keras.Model(inputs, model(inputs))
+    float_policy = NetworkPolicy(float_model)
+    assert float_policy.input_dtype == np.float32
+    np.testing.assert_array_equal(float_policy.predict_steering(real_frames),
+                                  NetworkPolicy(model).predict_steering(real_frames))
+    np.testing.assert_allclose(onnx_policy.predict_steering(real_frames),
+                               float_policy.predict_steering(real_frames), atol=PARITY_ABS)
 
 
 def test_runtime_onnx_converts_a_keras_file(tmp_path: Path, real_frames) -> None:

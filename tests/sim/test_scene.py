@@ -57,6 +57,48 @@ def test_two_scenes_one_after_the_other_in_one_process():
     np.testing.assert_array_equal(image_first, image_second)
 
 
+def test_scenes_on_one_track_reuse_its_scenery_and_textures_unchanged():
+    from test_golden import looks_the_same
+
+    from clonedrive.sim import reuse
+    from clonedrive.sim.conditions import Conditions
+    from clonedrive.sim.scene import _texture_images
+
+    reuse.forget()
+    worn = Conditions(road_wear=0.6)
+    with Scene("mountain") as fresh:
+        image_fresh = render_start(fresh)
+    with Scene("mountain", conditions=worn) as fresh_worn:
+        image_worn = render_start(fresh_worn)
+    with Scene("mountain") as again:
+        image_again = render_start(again)
+        assert again.scenery is fresh.scenery  # reused, not rebuilt
+    with Scene("mountain", conditions=worn) as again_worn:
+        assert again_worn.scenery is fresh_worn.scenery
+        image_again_worn = render_start(again_worn)
+    # What was handed out is what a fresh build gives, after four scenes used it.
+    rebuilt = build_scenery(load_track("mountain"))
+    for material, mesh in rebuilt.meshes.items():
+        kept = again.scenery.meshes[material].arrays()
+        for key, array in mesh.arrays().items():
+            np.testing.assert_array_equal(kept[key], array)
+    style, width = again.scenery.style, float(np.median(again.track.width))
+    kept_images = reuse.reused(("textures", "mountain", style, width, 0.0), lambda: None)
+    for name, image in _texture_images("mountain", style, width, 0.0).items():
+        np.testing.assert_array_equal(kept_images[name], image)
+    # The frames look the same (the golden frames' tolerance: a process's first scene and its
+    # later ones differ in a few dozen pixels, with or without reuse), and the worn road is
+    # another look, not mixed up with the plain one.
+    assert looks_the_same(image_again, image_fresh)
+    assert looks_the_same(image_again_worn, image_worn)
+    assert not looks_the_same(image_worn, image_fresh)
+    # Another track of the same theme gets its own scenery.
+    with Scene("gen2:hard:2000", scenery=False) as other:
+        assert other.scenery is not fresh.scenery
+    reuse.forget()
+    assert not reuse._kept
+
+
 def test_close_is_idempotent_and_a_closed_scene_cannot_render():
     scene = Scene("lake", scenery=False)
     rig = CameraRig(scene, ("center",), 32, 16)

@@ -148,6 +148,7 @@ class NetworkPolicy:
         self.steering_filter = self.new_steering_filter()
         self.model = model
         self.speed_head = has_speed_head(model)
+        self.input_dtype = model_input_dtype(model)
         self.set_speed_mph = float(set_speed_mph)
         self.slow_in_curves = bool(slow_in_curves)
         self.curve_gain = float(curve_gain)
@@ -233,7 +234,9 @@ class NetworkPolicy:
         # predict_on_batch runs without gradient tracking and works on every backend. One frame
         # through the seed model on the torch CPU backend: 4.5 ms median against 4.7 ms for
         # model(x, training=False) (benchmarks/server_latency.py; same as under torch.no_grad()).
-        output = self.model.predict_on_batch(images.astype(np.float32))
+        # Frames go in as the model takes them: float32 for Keras, uint8 as they are for an
+        # ONNX model with a uint8 input (a float copy would be rounded back: 7 ms per 8 frames).
+        output = self.model.predict_on_batch(images.astype(self.input_dtype, copy=False))
         outputs = list(output) if isinstance(output, list | tuple) else [output]
         steering = np.asarray(outputs[0]).reshape(len(images), -1)
         if steering.shape[1] != 1:
@@ -250,6 +253,15 @@ class NetworkPolicy:
         speed = np.nan_to_num(speed, nan=1.0, posinf=1.0, neginf=0.0)
         return (steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH),
                 nonfinite)
+
+
+def model_input_dtype(model) -> np.dtype:
+    """The dtype ``model``'s image input takes (float32 unless it says otherwise)."""
+    dtype = getattr(model.inputs[0], "dtype", None)
+    try:
+        return np.dtype(dtype) if dtype is not None else np.dtype(np.float32)
+    except TypeError:  # a backend dtype numpy does not know
+        return np.dtype(np.float32)
 
 
 def has_speed_head(model: keras.Model) -> bool:

@@ -10,7 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 
 from clonedrive.config import atomic_path  # noqa: E402
 from clonedrive.world.track import Track  # noqa: E402
@@ -27,7 +27,10 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     """Road surface, edges, centreline coloured by elevation, direction arrows and start line."""
     left, right = _road_outline(track)
     polygon = np.vstack([left, right[::-1]])
-    ax.fill(polygon[:, 0], polygon[:, 1], color="0.85", zorder=1, lw=0)
+    # A collection, not ax.fill: fill's patch updates the data limits vertex by vertex in Python
+    # (0.14 s for lake's 4,000 vertices); the edge lines below set the same limits.
+    ax.add_collection(PolyCollection([polygon], facecolors="0.85", edgecolors="none", zorder=1),
+                      autolim=False)
     ax.plot(left[:, 0], left[:, 1], color="0.35", lw=0.8, zorder=2)
     ax.plot(right[:, 0], right[:, 1], color="0.35", lw=0.8, zorder=2)
     if elevation:
@@ -82,7 +85,8 @@ def plot_track_map(track: Track, path: str | Path, *, title: str | None = None,
         f"{track.name}: {summary['length_m']:.0f} m, width {summary['width_m']:.1f} m, "
         f"elevation range {summary['elevation_range_m']:.0f} m, "
         f"min radius {summary['min_radius_m']:.0f} m"), fontsize=10)
-    fig.tight_layout()
+    # Fixed margins rather than tight_layout, which lays the ticks out once more (0.12 s a map).
+    fig.subplots_adjust(left=0.1, right=0.88, bottom=0.07, top=0.95)
     with atomic_path(path) as temporary:
         fig.savefig(temporary)
     plt.close(fig)

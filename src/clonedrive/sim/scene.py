@@ -44,6 +44,7 @@ from clonedrive.sim.randomization import (
     default_appearance,
     sample_appearance,
 )
+from clonedrive.sim.reuse import reused, track_key
 from clonedrive.sim.scenery import TREE_ATLAS_KINDS, Scenery, build_scenery
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track
@@ -235,7 +236,9 @@ class Scene:
             self.follow = self.root.attach_new_node("follow-car")  # sky and fog: position only
             self.car = self.root.attach_new_node("car")
             style = conditions.style(self.theme) if conditions is not None else None
-            self.scenery: Scenery = build_scenery(self.track, full=scenery, style=style)
+            self._scenery_key = ("scenery", track_key(self.track), bool(scenery), style)
+            self.scenery: Scenery = reused(
+                self._scenery_key, lambda: build_scenery(self.track, full=scenery, style=style))
             self._materials = self._make_materials()
             self._build_static()
             self._build_hood()
@@ -296,21 +299,10 @@ class Scene:
         )
 
         style = self.scenery.style
-        rng = np.random.default_rng(zlib.crc32(f"textures:{self.theme}".encode()))
         width = float(np.median(self.track.width))
-        images = {
-            "road": textures.asphalt(rng, base_rgb=style.road_rgb, road_width_m=width,
-                                     edge_rgb=style.edge_line_rgb, centre_line=style.centre_line,
-                                     tyre_tracks=style.tyre_tracks,
-                                     wear=self.conditions.road_wear if self.conditions else 0.0),
-            "ground": textures.ground_detail(rng),
-            "rock": textures.rock(rng),
-            "water": textures.water(rng),
-            "kerb": textures.kerb(),
-            "barrier": textures.barrier(),
-            "sign": textures.chevron_sign(),
-            "tree": textures.tree_atlas(rng, TREE_ATLAS_KINDS),
-        }
+        wear = self.conditions.road_wear if self.conditions else 0.0
+        images = reused(("textures", self.theme, style, width, wear),
+                        lambda: _texture_images(self.theme, style, width, wear))
         materials = _Materials()
         for name, image in images.items():
             texture = textures.to_panda_texture(image, name, mipmaps=name != "tree")
@@ -338,7 +330,9 @@ class Scene:
         triangles = 0
         for material, mesh in self.scenery.meshes.items():
             state = self._materials.states[material]
-            for cell, part in _split_by_cell(mesh, CELL_M).items():
+            cells = reused((self._scenery_key, "cells", material),
+                           lambda mesh=mesh: _split_by_cell(mesh, CELL_M))
+            for cell, part in cells.items():
                 baked = BakedGeom(part, None, name=material)
                 self._baked.append(baked)
                 triangles += baked.triangle_count
@@ -500,6 +494,24 @@ def _hood_geometry(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     albedo = rgb[None, None, :] * shade[:, None, None] * side[None, :, None]
     triangles = grid_triangles(len(drop), len(dx))
     return positions.reshape(-1, 3), albedo.reshape(-1, 3), triangles
+
+
+def _texture_images(theme: str, style, road_width_m: float, wear: float
+                    ) -> dict[str, np.ndarray]:
+    """The texture images of a scene (RGB or RGBA uint8), drawn from the theme's own seed."""
+    rng = np.random.default_rng(zlib.crc32(f"textures:{theme}".encode()))
+    return {
+        "road": textures.asphalt(rng, base_rgb=style.road_rgb, road_width_m=road_width_m,
+                                 edge_rgb=style.edge_line_rgb, centre_line=style.centre_line,
+                                 tyre_tracks=style.tyre_tracks, wear=wear),
+        "ground": textures.ground_detail(rng),
+        "rock": textures.rock(rng),
+        "water": textures.water(rng),
+        "kerb": textures.kerb(),
+        "barrier": textures.barrier(),
+        "sign": textures.chevron_sign(),
+        "tree": textures.tree_atlas(rng, TREE_ATLAS_KINDS),
+    }
 
 
 def _split_by_cell(mesh: Mesh, cell_m: float) -> dict[tuple[int, int], Mesh]:

@@ -178,5 +178,38 @@ def test_steering_filter_is_a_first_order_low_pass() -> None:
     policy = NetworkPolicy(constant_model(0.5), steering_filter_s=0.1)
     image = frames(1, 4)[0]
     assert policy.act(image, 9.0)[0] == pytest.approx(0.5)  # first command passes
-    policy.steering_filter.steering = 0.0
+    policy.steering_filter.reset()
+    policy.steering_filter.update(0.0)
     assert policy.act(image, 9.0)[0] == pytest.approx(0.2)
+
+
+def test_steering_hold_keeps_the_wheel_through_small_jitter_without_delay() -> None:
+    from clonedrive.drivers.network import SteeringFilter
+
+    hold = SteeringFilter(hold=0.05)
+    jitter = [0.10, 0.13, 0.08, 0.12, 0.09]  # within 0.05 of the wheel: it stays
+    assert [hold.update(v) for v in jitter] == [0.10] * 5
+    # A real move: the wheel follows at once, staying 0.05 behind, never further.
+    assert hold.update(0.40) == pytest.approx(0.35)
+    assert hold.update(0.45) == pytest.approx(0.40)
+    assert hold.update(0.38) == pytest.approx(0.40)  # back within the hold
+    assert hold.update(-0.20) == pytest.approx(-0.15)
+    wheel = SteeringFilter(hold=0.05)
+    rng = np.random.default_rng(0)
+    predictions = np.sin(np.linspace(0, 6, 300)) * 0.5 + rng.normal(0, 0.02, 300)
+    held = np.array([wheel.update(v) for v in predictions])
+    assert np.max(np.abs(held - predictions)) <= 0.05 + 1e-12
+    # Far less wheel movement than the jittery prediction.
+    assert np.abs(np.diff(held)).sum() < 0.5 * np.abs(np.diff(predictions)).sum()
+    combined = SteeringFilter(0.1, control_hz=15.0, hold=0.05)
+    assert combined.update(0.0) == 0.0
+    assert combined.update(1.0) == pytest.approx(0.35)  # low-pass 0.4, then the hold
+    with pytest.raises(ValueError, match="hold"):
+        SteeringFilter(hold=-0.1)
+    with pytest.raises(ValueError, match="hold"):
+        SteeringFilter(hold=float("nan"))
+    policy = NetworkPolicy(constant_model(0.5), steering_filter_s=0.3, steering_hold=0.02,
+                           slow_in_curves=True, curve_gain=2.0)
+    again = NetworkPolicy(constant_model(0.5), **policy.options())
+    assert again.options() == policy.options()
+    assert (again.steering_hold, again.steering_filter_s, again.curve_gain) == (0.02, 0.3, 2.0)

@@ -165,6 +165,29 @@ def test_runs_spread_over_worker_processes_give_the_same_results(tmp_path):
         assert two["mean_abs_cte_m"] == pytest.approx(one["mean_abs_cte_m"], abs=0.05)
 
 
+def test_worker_processes_drive_with_the_policys_steering_filter_and_hold(tmp_path):
+    """The workers build their own policy from the model file: it must steer through the same
+    filter and hold as the policy evaluate was given."""
+    model_file = tmp_path / "tiny.keras"
+    build_tiny_model(seed=3).save(model_file)
+    config = EvalConfig(tracks=("lake", "mountain"), speeds_mph=(15.0,), laps=1, scenery=False,
+                        max_seconds=6.0, workers=2)
+    figures = {}
+    for name, options in (("raw", {}), ("held", {"steering_filter_s": 0.5,
+                                                 "steering_hold": 0.05})):
+        policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=15.0, **options)
+        for workers in (1, 2):
+            report = evaluate(policy, EvalConfig(**{**config.__dict__, "workers": workers}),
+                              tmp_path / f"{name}{workers}", progress=False,
+                              model_path=str(model_file))
+            figures[name, workers] = [run["steering_rate_per_s"] for run in report["runs"]]
+    assert report["steering_hold"] == 0.05 and report["steering_filter_s"] == 0.5
+    for raw, held in zip(figures["raw", 1], figures["held", 1], strict=True):
+        assert held < 0.5 * raw  # the filter and hold matter on these runs
+    for alone, spread in zip(figures["held", 1], figures["held", 2], strict=True):
+        assert spread == pytest.approx(alone, rel=0.2)
+
+
 def test_parts_are_one_evaluation_scheduled_on_one_pool(tmp_path):
     """The demo's shape: a part with two laps on a built-in track, a part on an unseen track
     with one lap; one eval.json holds both parts' runs in order, as each part alone gives them."""

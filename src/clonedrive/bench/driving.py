@@ -86,6 +86,7 @@ def drive_batch(task: dict) -> list[dict]:
     return _drive_model(task["model"], specs, rules,
                         slow_in_curves=bool(task["slow_in_curves"]),
                         steering_filter_s=float(task.get("steering_filter_s", 0.0)),
+                        steering_hold=float(task.get("steering_hold", 0.0)),
                         trust=bool(task.get("trust_model", False)),
                         runtime=str(task.get("runtime", "auto")),
                         scenery=bool(task.get("scenery", True)))
@@ -98,12 +99,14 @@ def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> l
 
 def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                  slow_in_curves: bool, scenery: bool, trust: bool = False,
-                 runtime: str = "auto", steering_filter_s: float = 0.0) -> list[dict]:
+                 runtime: str = "auto", steering_filter_s: float = 0.0,
+                 steering_hold: float = 0.0) -> list[dict]:
     from clonedrive.drivers.network import load_policy
     from clonedrive.episode.drivers import NetworkDriver
 
     policy = load_policy(model_path, slow_in_curves=slow_in_curves, trust=trust,
-                         runtime=runtime, steering_filter_s=steering_filter_s)
+                         runtime=runtime, steering_filter_s=steering_filter_s,
+                         steering_hold=steering_hold)
     import torch
 
     torch.set_num_threads(1)  # results must not depend on how many workers share the cores

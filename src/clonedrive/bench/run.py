@@ -44,6 +44,7 @@ class BenchConfig:
     batch: int = 4  #: episodes one worker drives in lock-step
     slow_in_curves: bool = False  #: the network's target speed falls with |steering|
     steering_filter_s: float = 0.0  #: low-pass on the predicted steering [s] (0 = off)
+    steering_hold: float = 0.0  #: hold the wheel through smaller steering jitter (0 = off)
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -104,6 +105,7 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
             tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
                           "slow_in_curves": config.slow_in_curves,
                           "steering_filter_s": config.steering_filter_s,
+                          "steering_hold": config.steering_hold,
                           "trust_model": config.trust_model, "runtime": config.runtime,
                           "episodes": episodes[i:i + config.batch], **common})
     return tasks, refs

@@ -45,6 +45,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
                              "(0.1 = the expert's hand; 0 = off, as drive.py)")
+    parser.add_argument("--steering-hold", type=float, default=0.0, metavar="H",
+                        help="hold the wheel while the predicted steering stays within H of it "
+                             "(steering units, -1..1; removes jitter smaller than H without a "
+                             "delay; 0 = off, as drive.py)")
     parser.add_argument("--slow-in-curves", action="store_true",
                         help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=d.batch,
@@ -95,7 +99,8 @@ def run(args) -> int:
         return 2
     try:
         policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves,
-                                       steering_filter_s=args.steering_filter)
+                                       steering_filter_s=args.steering_filter,
+                                       steering_hold=args.steering_hold)
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -94,27 +94,43 @@ class SpeedController:
 
 
 class SteeringFilter:
-    """A first-order low-pass on the steering command, ``time_constant_s`` [s] at
-    ``control_hz``: the expert's "hand" (drivers.expert, 0.1 s). 0 passes steering through."""
+    """What stands between the network's steering and the wheel, per car: a first-order low-pass
+    with ``time_constant_s`` [s] at ``control_hz`` (the expert's "hand", drivers.expert: 0.1 s),
+    then a hold of ``hold`` (steering units, [-1, 1]): the wheel stays where it is while the
+    (low-passed) prediction is within ``hold`` of it, and otherwise moves just far enough to be
+    ``hold`` from it. The hold removes frame-to-frame jitter smaller than itself without the
+    low-pass's delay: the wheel is never further than ``hold`` from the prediction. Both 0 (the
+    default, as drive.py): steering passes through."""
 
-    def __init__(self, time_constant_s: float = 0.0, control_hz: float = CONTROL_HZ) -> None:
+    def __init__(self, time_constant_s: float = 0.0, control_hz: float = CONTROL_HZ,
+                 hold: float = 0.0) -> None:
         if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
             raise ValueError(f"steering filter time constant must be >= 0 s, got "
                              f"{time_constant_s}")
+        if not (math.isfinite(hold) and 0.0 <= hold < 1.0):
+            raise ValueError(f"steering hold must be in [0, 1) (steering units), got {hold}")
         self.time_constant_s = float(time_constant_s)
+        self.hold = float(hold)
         period = 1.0 / float(control_hz)
         self.alpha = period / (self.time_constant_s + period)
-        self.steering: float | None = None
+        self.steering: float | None = None  #: the wheel: the last command handed out
+        self._smoothed: float | None = None
 
     def reset(self) -> None:
         self.steering = None
+        self._smoothed = None
 
     def update(self, steering: float) -> float:
-        """The filtered steering after this step's command ``steering``."""
-        if self.steering is None or self.alpha >= 1.0:
-            self.steering = float(steering)
+        """The wheel's steering after this step's prediction ``steering``."""
+        if self._smoothed is None or self.alpha >= 1.0:
+            self._smoothed = float(steering)
         else:
-            self.steering += self.alpha * (float(steering) - self.steering)
+            self._smoothed += self.alpha * (float(steering) - self._smoothed)
+        if self.steering is None:
+            self.steering = self._smoothed
+        else:
+            self.steering = min(max(self.steering, self._smoothed - self.hold),
+                                self._smoothed + self.hold)
         return self.steering
 
 
@@ -126,8 +142,9 @@ class NetworkPolicy:
     ``slow_in_curves`` (off by default): the hand-made rule, the target falls as the predicted
     steering grows, ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)``
     (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
-    ``steering_filter_s`` > 0 low-passes the predicted steering (:class:`SteeringFilter`;
-    off by default, as drive.py).
+    ``steering_filter_s`` > 0 low-passes the predicted steering and ``steering_hold`` > 0 holds
+    the wheel through jitter smaller than itself (:class:`SteeringFilter`; both off by default,
+    as drive.py).
     """
 
     def __init__(
@@ -142,9 +159,11 @@ class NetworkPolicy:
         min_speed_fraction: float = 0.4,
         batch_size: int = 64,
         steering_filter_s: float = 0.0,
+        steering_hold: float = 0.0,
     ) -> None:
         check_model(model)
         self.steering_filter_s = float(steering_filter_s)
+        self.steering_hold = float(steering_hold)
         self.steering_filter = self.new_steering_filter()
         self.model = model
         self.speed_head = has_speed_head(model)
@@ -168,8 +187,16 @@ class NetworkPolicy:
         self.steering_filter.reset()
 
     def new_steering_filter(self) -> SteeringFilter:
-        """A :class:`SteeringFilter` with this policy's time constant (one per car)."""
-        return SteeringFilter(self.steering_filter_s)
+        """A :class:`SteeringFilter` with this policy's time constant and hold (one per car)."""
+        return SteeringFilter(self.steering_filter_s, hold=self.steering_hold)
+
+    def options(self) -> dict:
+        """The constructor options (other than the model and the set speed) that make another
+        process's policy for the same model drive as this one does."""
+        return {"kp": self.controller.kp, "ki": self.controller.ki,
+                "slow_in_curves": self.slow_in_curves, "curve_gain": self.curve_gain,
+                "min_speed_fraction": self.min_speed_fraction,
+                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold}
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:

@@ -125,6 +125,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
         "slow_in_curves": first.slow_in_curves,
         "speed_head": speed_head,
         "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
+        "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")
@@ -178,7 +179,10 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
         else:
             # Longest first, so that the last group to start is a short one.
             order = sorted(range(len(groups)), key=lambda i: -cost[i])
+            # Each worker loads the model and builds a policy that drives as ``policy`` does.
+            policy_options = policy.options() if hasattr(policy, "options") else {}
             tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
+                      "policy_options": policy_options,
                       "group": groups[i][1], "names": names, "config": groups[i][0],
                       "out": str(out)} for i in order]
 
@@ -198,8 +202,8 @@ def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
     from clonedrive.drivers.network import load_policy
 
     config: EvalConfig = task["config"]
-    policy = load_policy(task["model_path"], slow_in_curves=config.slow_in_curves,
-                         **task["model_options"])
+    options = {**task.get("policy_options", {}), "slow_in_curves": config.slow_in_curves}
+    policy = load_policy(task["model_path"], **task["model_options"], **options)
     results: list[tuple[int, dict]] = []
     _drive_group(policy, task["group"], task["names"], config, Path(task["out"]), None,
                  lambda index, result: results.append((index, result)))

@@ -27,13 +27,24 @@ def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert "--speed" in capsys.readouterr().err
 
 
+def test_bad_steering_filter_or_hold_is_named(tiny_model_path: Path,
+                                              capsys: pytest.CaptureFixture) -> None:
+    """``drive`` and ``evaluate`` pass --steering-filter and --steering-hold to the policy."""
+    model = str(tiny_model_path)
+    for verb in ("drive", "evaluate"):
+        assert main([verb, model, "--steering-hold", "1.5"]) != 0
+        assert "steering hold must be in [0, 1)" in capsys.readouterr().err
+        assert main([verb, model, "--steering-filter", "-1"]) != 0
+        assert "steering filter time constant must be >= 0" in capsys.readouterr().err
+
+
 def test_serves_the_simulator_until_interrupted(tmp_path: Path, tiny_model_path: Path,
                                                 recorded_jpeg: bytes) -> None:
     model = tiny_model_path
     frames = tmp_path / "run1"
     jpeg = recorded_jpeg
     command = [sys.executable, "-m", "clonedrive", "drive", str(model), str(frames)]
-    command += ["--port", "0", "--speed", "15", "--slow-in-curves"]
+    command += ["--port", "0", "--speed", "15", "--slow-in-curves", "--steering-hold", "0.05"]
     process = subprocess.Popen(
         command, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"}
     )

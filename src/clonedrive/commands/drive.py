@@ -6,7 +6,11 @@ import argparse
 import logging
 import sys
 
-from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
+from clonedrive.commands.model_options import (
+    add_model_arguments,
+    add_steering_arguments,
+    load_policy_from_args,
+)
 from clonedrive.udacity.server_config import DriveServerConfig
 from clonedrive.udacity_spec import SET_SPEED_MPH
 
@@ -33,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="lower the target speed as |steering| grows (down to 40%% of --speed)",
     )
+    add_steering_arguments(parser)
     defaults = DriveServerConfig()
     parser.add_argument("--host", default=defaults.host,
                         help="IP address to bind; 0.0.0.0 serves other machines")

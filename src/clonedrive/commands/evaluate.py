@@ -5,7 +5,11 @@ from __future__ import annotations
 import json
 import sys
 
-from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
+from clonedrive.commands.model_options import (
+    add_model_arguments,
+    add_steering_arguments,
+    load_policy_from_args,
+)
 
 HELP = "drive a model in closed loop (headless) and measure laps, interventions, CTE"
 DESCRIPTION = (
@@ -42,13 +46,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--video-saliency", action="store_true",
                         help="with --video: paint the VisualBackProp saliency mask (where the "
                              "network looks) onto the frames")
-    parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S",
-                        help="low-pass the predicted steering with this time constant [s] "
-                             "(0.1 = the expert's hand; 0 = off, as drive.py)")
-    parser.add_argument("--steering-hold", type=float, default=0.0, metavar="H",
-                        help="hold the wheel while the predicted steering stays within H of it "
-                             "(steering units, -1..1; removes jitter smaller than H without a "
-                             "delay; 0 = off, as drive.py)")
+    add_steering_arguments(parser)
     parser.add_argument("--slow-in-curves", action="store_true",
                         help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=d.batch,
@@ -98,9 +96,7 @@ def run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     try:
-        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves,
-                                       steering_filter_s=args.steering_filter,
-                                       steering_hold=args.steering_hold)
+        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)
     except (FileNotFoundError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

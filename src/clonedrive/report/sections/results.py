@@ -135,11 +135,27 @@ def _stills(ctx: ReportContext, runs: list[dict], eval_dir: Path) -> list:
 def _speed_text(report: dict) -> str:
     control = report.get("speed_control") or "a PI controller on the set speed"
     if report.get("slow_in_curves"):
-        return (f"Speed control: {control}. **Slowing in curves was on**: the target speed "
+        text = (f"Speed control: {control}. **Slowing in curves was on**: the target speed "
                 "falls as the predicted steering grows, so the car takes bends slower than the "
                 "set speed shown in the table.")
-    return (f"Speed control: {control}. Slowing in curves was **off**: the controller holds "
-            "the set speed everywhere, bends included; the network steers alone.")
+    else:
+        text = (f"Speed control: {control}. Slowing in curves was **off**: the controller "
+                "holds the set speed everywhere, bends included; the network steers alone.")
+    return text + _steering_text(report)
+
+
+def _steering_text(report: dict) -> str:
+    """What stood between the network's steering and the wheel (nothing, as drive.py)."""
+    steps = []
+    if float(report.get("steering_filter_s") or 0.0) > 0.0:
+        steps.append(f"low-passed with a {float(report['steering_filter_s']):g} s time constant")
+    if float(report.get("steering_hold") or 0.0) > 0.0:
+        steps.append(f"held while the prediction stayed within "
+                     f"{float(report['steering_hold']):g} of the wheel")
+    if not steps:
+        return ""
+    return (" **The steering was smoothed**: the network's prediction was "
+            + " and ".join(steps) + " (so the smoothness figures are not drive.py's).")
 
 
 def _total_row(label: str, runs: list[dict], totals: dict | None) -> tuple[str, ...]:

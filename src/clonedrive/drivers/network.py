@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from clonedrive.drivers.traced import forward_for
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
@@ -168,6 +169,9 @@ class NetworkPolicy:
         self.model = model
         self.speed_head = has_speed_head(model)
         self.input_dtype = model_input_dtype(model)
+        #: Runs the model on a batch: traced by PyTorch where that gives the same outputs
+        #: (clonedrive.drivers.traced), else the model's predict_on_batch.
+        self.forward = forward_for(model)
         self.set_speed_mph = float(set_speed_mph)
         self.slow_in_curves = bool(slow_in_curves)
         self.curve_gain = float(curve_gain)
@@ -258,12 +262,10 @@ class NetworkPolicy:
     def _predict(self, images: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """(steering, learned speed or None, which frames' steering was NaN or infinite)."""
-        # predict_on_batch runs without gradient tracking and works on every backend. One frame
-        # through the seed model on the torch CPU backend: 4.5 ms median against 4.7 ms for
-        # model(x, training=False) (benchmarks/server_latency.py; same as under torch.no_grad()).
-        # Frames go in as the model takes them: float32 for Keras, uint8 as they are for an
-        # ONNX model with a uint8 input (a float copy would be rounded back: 7 ms per 8 frames).
-        output = self.model.predict_on_batch(images.astype(self.input_dtype, copy=False))
+        # Frames go in as the model takes them: uint8 for ours (Keras and ONNX alike; a float
+        # copy for ONNX Runtime would be rounded back: 7 ms per 8 frames), float32 for a model
+        # with a float input. ``forward`` is predict_on_batch, or its checked trace.
+        output = self.forward(images.astype(self.input_dtype, copy=False))
         outputs = list(output) if isinstance(output, list | tuple) else [output]
         steering = np.asarray(outputs[0]).reshape(len(images), -1)
         if steering.shape[1] != 1:

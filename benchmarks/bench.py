@@ -1,6 +1,6 @@
 """Bench throughput: episodes per second of `clonedrive bench`'s worker pool, 1 and N workers.
 
-The same fixed list of episodes (train-tracks and new-tracks-hard of suite v1, each capped at
+The same fixed list of episodes (train-tracks and new-tracks-hard of suite v2, each capped at
 `--seconds` of simulated time, full scenery, an untrained `fast` network: the weights do not
 change the cost) is driven by the pool with 1 worker and with N workers (default: the CPU
 cores). Each batch runs in a fresh process, so the figures include process start and model
@@ -20,6 +20,7 @@ from pathlib import Path
 
 
 def main() -> int:
+    from clonedrive.bench import DEFAULT_SUITE
     from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.run import BenchConfig, plan_tasks
     from clonedrive.bench.suite import load_suite
@@ -36,7 +37,7 @@ def main() -> int:
         build_model("fast").save(model)
         config = BenchConfig(models=(str(model),), splits=("train-tracks", "new-tracks-hard"),
                              batch=2, max_seconds=args.seconds)
-        tasks, _ = plan_tasks(load_suite("v1"), config)
+        tasks, _ = plan_tasks(load_suite(DEFAULT_SUITE), config)
         tasks = [t for t in tasks if t["kind"] == "model"][: max(1, args.episodes // 2)]
         episodes = sum(len(t["episodes"]) for t in tasks)
         figures, results = {}, {}

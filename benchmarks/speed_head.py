@@ -2,7 +2,7 @@
 
 Issue 12's targets, measured with `clonedrive bench`: a model with a speed head (`train
 --speed-head`), driving with no `slow_in_curves` at a 30 mph cap, is clean on the mountain and on
-every benchmark track (suite v1's train-tracks and new-tracks easy/medium/hard, clear look, one
+every benchmark track (suite v2's train-tracks and new-tracks easy/medium/hard, clear look, one
 lap from a standing start), with a lap time <= 1.05x the expert's and a smoothness ratio (mean
 |steering change| per second over the expert's) <= 1.2. With `--baseline MODEL` a one-output
 model is driven the same way with the hand-made curve rule (`slow_in_curves`), for comparison.
@@ -18,19 +18,20 @@ import json
 import tempfile
 from pathlib import Path
 
-#: Suite v1's splits that name the benchmark's tracks, driven at the cap only.
+#: The default suite's splits that name the benchmark's tracks, driven at the cap only.
 SPLITS = ("train-tracks", "new-tracks-easy", "new-tracks-medium", "new-tracks-hard")
 CAP_MPH = 30.0
 
 
 def suite_at_cap(folder: Path) -> Path:
-    """Suite v1's track splits at the 30 mph cap only, clear look, as a suite file."""
+    """The default suite's track splits at the 30 mph cap only, clear look, as a suite file."""
+    from clonedrive.bench import DEFAULT_SUITE
     from clonedrive.bench.suite import load_suite
 
-    v1 = load_suite("v1").to_dict()
-    lines = ['id = "v1-tracks-30mph"', 'description = "suite v1 tracks at the 30 mph cap"',
+    base = load_suite(DEFAULT_SUITE).to_dict()
+    lines = ['id = "v2-tracks-30mph"', 'description = "suite v2 tracks at the 30 mph cap"',
              "laps = 1", ""]
-    for split in v1["splits"]:
+    for split in base["splits"]:
         if split["name"] not in SPLITS:
             continue
         tracks = ", ".join(f'"{name}"' for name in split["tracks"])

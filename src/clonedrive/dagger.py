@@ -51,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.config import save_config, write_json_atomic
 
 DAGGER_JSON = "dagger.json"
@@ -74,7 +75,7 @@ class DaggerConfig:
     eval_tracks: tuple[str, ...] = ("mountain", "lake")
     eval_laps: int = 1
     eval_unseen: int = 3  #: generated tracks evaluate never records on (split ``unseen``)
-    bench_suite: str = "v1"  #: the benchmark suite evaluating each iteration ...
+    bench_suite: str = DEFAULT_SUITE  #: the benchmark suite evaluating each iteration ...
     bench_splits: tuple[str, ...] = ()  #: ... on these splits (none: evaluate's tracks)
     workers: int | None = 1  #: bench worker processes
     takeover_margin_m: float = 0.3  #: the expert takes over this near an edge [m]

@@ -1,18 +1,20 @@
-"""Suite files: v1 is valid and fixed, its families match the library's, bad files are named."""
+"""Suite files: v2 is valid and fixed, v1 is retired with its reason, its families match the
+library's, bad files are named."""
 
 import pytest
 
+from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.suite import SuiteError, load_suite
 from clonedrive.sim.conditions import FAMILIES
 
 
-def test_v1_is_a_fixed_list_of_episodes_with_the_named_splits():
-    suite = load_suite("v1")
-    assert suite.id == "v1"
+def test_v2_is_a_fixed_list_of_episodes_with_the_named_splits():
+    suite = load_suite(DEFAULT_SUITE)
+    assert suite.id == DEFAULT_SUITE == "v2"
     assert suite.split_names() == ["train-tracks", "new-tracks-easy", "new-tracks-medium",
                                    "new-tracks-hard", "new-conditions",
                                    "new-tracks+new-conditions"]
-    first, again = suite.episodes(), load_suite("v1").episodes()
+    first, again = suite.episodes(), load_suite(DEFAULT_SUITE).episodes()
     assert first == again
     assert len({spec.key for spec in first}) == len(first)
     held = {spec.family for spec in first if spec.split.startswith("new-tracks+")}
@@ -21,6 +23,15 @@ def test_v1_is_a_fixed_list_of_episodes_with_the_named_splits():
     # the suite's condition families are the library's (one definition, checked)
     for name, family in suite.families.items():
         assert family == FAMILIES[name], name
+
+
+def test_the_retired_v1_is_refused_with_its_reason_and_a_file_named_v1_still_loads(
+        tmp_path, monkeypatch):
+    with pytest.raises(SuiteError, match="suite v1: retired: .*under the lake's water.*v2"):
+        load_suite("v1")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "v1").write_text(BASE, encoding="utf-8")
+    assert load_suite("v1").id == "mine"
 
 
 def write(tmp_path, text):

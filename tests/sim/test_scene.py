@@ -4,6 +4,7 @@ import pytest
 from clonedrive.sim.cameras import CameraRig
 from clonedrive.sim.scene import RenderEngine, Scene
 from clonedrive.sim.scenery import build_scenery, find_bridge
+from clonedrive.sim.scenery.site import WATER_BELOW_BRIDGE_M, WATER_BELOW_ROAD_M, water_level
 from clonedrive.world.catalog import load_track
 
 
@@ -119,3 +120,34 @@ def test_engine_options_are_set_on_creation_and_removed_on_close():
     assert ConfigVariableString("load-display", "").get_value() == "p3tinydisplay"
     engine.close()
     assert ConfigVariableString("load-display", "").get_value() == before
+
+
+#: Generated lake tracks whose road dips lower than the bridge deck less 2.2 m: before the water
+#: level also cleared the road, stretches of these ran under the lake.
+LOW_ROAD_TRACKS = ["gen2:easy:2001", "gen2:medium:2001", "gen2:hard:2002", "gen2:hard:2003"]
+
+
+@pytest.mark.parametrize("name", ["lake", *LOW_ROAD_TRACKS])
+def test_the_water_lies_below_the_whole_road(name):
+    track = load_track(name)
+    bridge = find_bridge(track)
+    level = water_level(track, bridge)
+    on_bridge = bridge.contains(track.s, track.length_m)
+    assert level <= track.xyz[on_bridge, 2].min() - WATER_BELOW_BRIDGE_M
+    assert level <= track.xyz[:, 2].min() - WATER_BELOW_ROAD_M
+    if name == "lake":  # the lake track's road clears the bridge's water: its look is unchanged
+        assert level == pytest.approx(track.xyz[on_bridge, 2].min() - WATER_BELOW_BRIDGE_M)
+
+
+def test_the_camera_sees_road_not_water_on_the_low_s_bends():
+    # gen2:medium:2001's S-bends at 370-490 m lie below its bridge deck less 2.2 m: the camera
+    # on the centreline there saw only water (blue minus red 68-78 here), and networks drove
+    # off the road where they could not see it
+    track = load_track("gen2:medium:2001")
+    with Scene(track) as scene, CameraRig(scene, ("center",), 80, 40) as rig:
+        for s in (380.0, 440.0):
+            x, y, z = track.point(s)
+            image = rig.render(x, y, z, float(track.heading_at(s)))["center"].astype(float)
+            ahead = image[24:32, 30:50]  # the road just ahead of the bonnet
+            red, blue = ahead[..., 0].mean(), ahead[..., 2].mean()
+            assert blue - red < 25.0, s  # grey asphalt (about -11); the water is blue

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
 from clonedrive.config import config_to_dict, write_json_atomic
@@ -37,7 +38,7 @@ class BenchConfig:
     """What ``clonedrive bench`` runs."""
 
     models: tuple[str, ...]  #: PATH or LABEL=PATH per model
-    suite: str = "v1"  #: a built-in suite name or a suite .toml file
+    suite: str = DEFAULT_SUITE  #: a built-in suite name or a suite .toml file
     splits: tuple[str, ...] = ()  #: only these splits (default: all)
     workers: int | None = None  #: local worker processes (default: one per CPU core)
     ray: str | None = None  #: "auto", a Ray cluster address, or "local"

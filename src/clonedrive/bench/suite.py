@@ -1,6 +1,6 @@
 """Benchmark suites: named, versioned splits of episodes, read from a TOML file.
 
-A suite file (``bench/suites/v1.toml`` is the built-in ``v1``; copy it to make your own) holds
+A suite file (``bench/suites/v2.toml`` is the built-in ``v2``; copy it to make your own) holds
 an ``id``, the laps per episode, ``[[split]]`` tables and ``[conditions.NAME]`` families (see
 :mod:`clonedrive.sim.conditions`). A split drives every combination of its ``tracks``,
 ``speeds_mph`` and ``conditions`` once; episode ``i`` of a split draws its conditions from its
@@ -21,6 +21,11 @@ from clonedrive.world.track import TrackError
 
 SUITE_KEYS = ("id", "description", "laps", "split", "conditions")
 SPLIT_KEYS = ("name", "description", "tracks", "speeds_mph", "conditions", "seed")
+#: Built-in suites no longer shipped, and why: their figures cannot be reproduced.
+RETIRED_SUITES = {
+    "v1": "retired: 6 of its generated lake tracks had stretches of road under the lake's "
+          "water; suite v2 drives the same episodes in the fixed scenery",
+}
 #: Most episodes one suite may hold (a typo like 1e6 tracks must not run for a year).
 MAX_EPISODES = 2000
 
@@ -110,9 +115,11 @@ def builtin_suite_names() -> list[str]:
 
 
 def load_suite(name_or_path: str | Path, *, check_tracks: bool = True) -> Suite:
-    """A suite by built-in name (``v1``) or TOML file path; every field is checked, and with
+    """A suite by built-in name (``v2``) or TOML file path; every field is checked, and with
     ``check_tracks`` every track name is loaded once."""
     name = str(name_or_path)
+    if name in RETIRED_SUITES and not Path(name).is_file():
+        raise SuiteError(f"suite {name}: {RETIRED_SUITES[name]}")
     if name in builtin_suite_names():
         folder = resources.files("clonedrive.bench") / "suites"
         text = (folder / f"{name}.toml").read_text(encoding="utf-8")

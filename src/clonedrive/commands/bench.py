@@ -5,11 +5,12 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.commands.model_options import add_model_arguments
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
-    "Drive one or more models through every split of a benchmark suite (built in: v1; or a "
+    "Drive one or more models through every split of a benchmark suite (built in: v2; or a "
     ".toml file copied from it): seen tracks, new generated tracks at three difficulties, "
     "held-out conditions. The expert drives each track and speed cap once as the reference. "
     "Writes bench.json, leaderboard.md and leaderboard.html with plots. Give models as PATH or "
@@ -21,7 +22,8 @@ DESCRIPTION = (
 
 def add_arguments(parser) -> None:
     parser.add_argument("models", nargs="+", metavar="MODEL", help="PATH or LABEL=PATH")
-    parser.add_argument("--suite", default="v1", help="built-in suite name or a suite .toml")
+    parser.add_argument("--suite", default=DEFAULT_SUITE,
+                        help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE})")
     parser.add_argument("--split", action="append", default=None, metavar="NAME",
                         help="run only this split (repeatable)")
     parser.add_argument("--workers", type=int, default=None, metavar="N",

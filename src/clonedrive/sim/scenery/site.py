@@ -24,6 +24,11 @@ CHEVRON_CURVATURE = 1.0 / 40.0
 STRAIGHT_CURVATURES = (1.0 / 600.0, 1.0 / 250.0)
 #: Feature station spacing [m] (kerbs, barriers, signs).
 ROAD_STEP_M = 1.5
+#: The lake's water lies this far [m] below the bridge deck's lowest point...
+WATER_BELOW_BRIDGE_M = 2.2
+#: ...and at least this far below the road's lowest point anywhere on the track, so that no
+#: stretch of road runs under the water (the lake track's road clears it by 0.52 m).
+WATER_BELOW_ROAD_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -146,6 +151,16 @@ def interior_side(track: Track) -> int:
     return -1 if turning > 0 else 1
 
 
+def water_level(track: Track, bridge: Span | None) -> float | None:
+    """Height [m] of the lake's water under ``bridge`` (None without a bridge): below the deck,
+    and below every part of the road, which would otherwise run through a flooded trench."""
+    if bridge is None:
+        return None
+    on_bridge = bridge.contains(track.s, track.length_m)
+    under_deck = float(track.xyz[on_bridge, 2].min()) - WATER_BELOW_BRIDGE_M
+    return min(under_deck, float(track.xyz[:, 2].min()) - WATER_BELOW_ROAD_M)
+
+
 def right_normal(track: Track, s_m: np.ndarray) -> np.ndarray:
     """Unit vectors (n, 2) pointing to the right of the driving direction at ``s_m``."""
     heading = track.heading_at(s_m)
@@ -167,10 +182,7 @@ class Site:
         self.stations = np.arange(count) * (self.length / count)
         self.curvature = track.curvature(self.stations)
         self.bridge = find_bridge(track) if self.style.bridge else None
-        self.water_level = None
-        if self.bridge is not None:
-            on_bridge = self.bridge.contains(track.s, self.length)
-            self.water_level = float(track.xyz[on_bridge, 2].min()) - 2.2
+        self.water_level = water_level(track, self.bridge)
         self.wall_side = interior_side(track)
         noise_rng = track_rng(track, "terrain")
         self.hills = SineField(noise_rng, 14, (60.0, 420.0))

@@ -62,6 +62,8 @@ def summary(model: dict) -> dict:
     runs = model["runs"]
     mountain = [r for r in runs if r["track"] == "mountain"]
     ratios = [r["scores"]["lap_time_ratio"] for r in runs if r["scores"]["lap_time_ratio"]]
+    timed = [r for r in runs if r["scores"]["lap_time_ratio"]]
+    slowest = max(timed, key=lambda r: r["scores"]["lap_time_ratio"]) if timed else None
     smooth = [r["scores"]["smoothness_ratio"] for r in runs if r["scores"]["smoothness_ratio"]]
     return {
         "runs": len(runs),
@@ -70,6 +72,8 @@ def summary(model: dict) -> dict:
         "max_lap_time_ratio": round(max(ratios), 4) if ratios else None,
         "mean_lap_time_ratio": round(sum(ratios) / len(ratios), 4) if ratios else None,
         "mean_smoothness_ratio": round(sum(smooth) / len(smooth), 4) if smooth else None,
+        "slowest": (f"{slowest['track']} ({slowest['scores']['lap_time_ratio']:.3f})"
+                    if slowest else None),
         "splits": {name: {key: figures.get(key) for key in
                           ("success_pct", "interventions_per_km", "lap_time_ratio",
                            "smoothness_ratio")}
@@ -112,6 +116,7 @@ def main() -> int:
               f"(target <= 1.2)")
         for split, values in result["splits"].items():
             print(f"  {split:<20} {values}")
+        print(f"  slowest lap against the expert: {result['slowest']}")
         if result["failed"]:
             print(f"  not clean: {', '.join(result['failed'])}")
     print(json.dumps(figures))

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from clonedrive.world import track as track_module
 from clonedrive.world.catalog import builtin_track_names, load_track
 from clonedrive.world.generate import generate
 from clonedrive.world.track import (
@@ -57,6 +58,30 @@ def test_project_recovers_arc_length_and_signed_offset():
     along = (proj.s_m - s + track.length_m / 2) % track.length_m - track.length_m / 2
     assert np.abs(along).max() < 0.3
     assert np.allclose(proj.cte_m, offset, atol=0.05)
+
+
+@pytest.mark.parametrize("name", ["lake", "mountain", "gen2:hard:2002"])
+def test_projecting_a_few_points_equals_the_array_path_bit_for_bit(name, monkeypatch):
+    # A car's centre and tyres take the plain-Python path every step; a scenery build's
+    # thousands of points take NumPy's. Both must give the same floats.
+    track = load_track(name)
+    rng = np.random.default_rng(1)
+    s = rng.uniform(0, track.length_m, 600)
+    s[:30] = rng.uniform(-0.3, 0.3, 30) % track.length_m  # either side of the start line
+    offset = rng.normal(0.0, 4.0, 600)
+    offset[:10] *= 25.0  # far off the road
+    points = track.offset_point(s, offset)[:, :2]
+    points[::7] = track.xyz[rng.integers(0, len(track.s), len(points[::7])), :2]  # on samples
+    monkeypatch.setattr(track_module, "SMALL_PROJECTION", 0)
+    whole = track.project(points)
+    monkeypatch.setattr(track_module, "SMALL_PROJECTION", 8)
+    for start in range(0, len(points), 5):
+        few = track.project(points[start : start + 5])
+        for field in ("s_m", "cte_m", "half_width_m", "z_m"):
+            np.testing.assert_array_equal(getattr(few, field),
+                                          getattr(whole, field)[start : start + 5])
+    one = track.project(points[3])  # a single (2,) point keeps its scalar shape
+    assert one.s_m.shape == () and one.s_m == whole.s_m[3]
 
 
 def test_right_of_centre_is_positive_cte():

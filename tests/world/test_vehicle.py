@@ -119,3 +119,12 @@ def test_dynamic_regime_understeers_and_grip_drops_off_road():
 
 def test_top_speed_is_30_mph():
     assert replace(PARAMS).top_speed_mps == pytest.approx(30 * MPH_TO_MPS)
+
+
+def test_controls_are_clipped_into_range_and_non_finite_values_become_zero():
+    inside = Controls(steering=-1.0, throttle=0.3, brake=1.0)
+    assert inside.clipped() == inside
+    assert Controls(steering=1.7, throttle=-3.0, brake=-0.2).clipped() == Controls(1.0, -1.0, 0.0)
+    assert Controls(steering=float("nan"), throttle=float("inf"),
+                    brake=float("-inf")).clipped() == Controls(0.0, 0.0, 0.0)
+    assert Controls(steering=0.5, throttle=float("nan")).clipped() == Controls(0.5, 0.0, 0.0)

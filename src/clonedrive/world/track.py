@@ -45,6 +45,8 @@ MAX_CONTROL_POINTS = 10_000
 MAX_COORDINATE_M = 10_000.0
 #: Longest track [m] (the lake is 1.2 km, the mountain 2.6 km): bounds every table along it.
 MAX_TRACK_LENGTH_M = 20_000.0
+#: Track.project takes its plain-Python path up to this many points (NumPy's beyond).
+SMALL_PROJECTION = 8
 #: Longest track name [characters].
 MAX_TRACK_NAME_CHARS = 200
 #: The newest track version this code knows (tracks count versions from 1, bumped with their
@@ -216,6 +218,12 @@ class Track:
         #: grade dz/ds along the driving direction
         self.grade_table = np.asarray(dz) / speed_xy
         self._tree = cKDTree(self.xyz[:, :2])
+        # Python rows of the tables, for projecting a few points at a time (_project_few).
+        self._xy_rows = self.xyz[:, :2].tolist()
+        self._xyz_rows = self.xyz.tolist()
+        self._normal_rows = self.right_normal.tolist()
+        self._width_rows = self.width.tolist()
+        self._s_rows = self.s.tolist()
 
     def _validate(self, where: str) -> None:
         radius = 1.0 / np.maximum(np.abs(self.curvature_table), 1e-9)
@@ -322,6 +330,8 @@ class Track:
         shape = pts.shape[:-1]
         flat = pts.reshape(-1, 2)
         _, nearest = self._tree.query(flat)
+        if len(flat) <= SMALL_PROJECTION:
+            return self._project_few(flat, nearest, shape)
         n = len(self.s)
         best_s = np.empty(len(flat))
         best_d2 = np.full(len(flat), np.inf)
@@ -346,6 +356,47 @@ class Track:
             half_width_m=(0.5 * self.width_at(best_s)).reshape(shape),
             z_m=centre[:, 2].reshape(shape),
         )
+
+    def _project_few(self, flat: np.ndarray, nearest: np.ndarray, shape: tuple) -> Projection:
+        """:meth:`project` for a few points (a car's centre and tyres, every step), in plain
+        Python floats: the same operations in the same order, so bit-identical results (tested),
+        without NumPy's per-call cost on arrays of five."""
+        n = len(self.s)
+        ds = self.ds_m
+        length = self.length_m
+        xy = self._xy_rows
+        s_rows = self._s_rows
+        out_s, out_cte, out_half, out_z = [], [], [], []
+        for (px, py), near in zip(flat.tolist(), nearest.tolist(), strict=True):
+            best_s, best_d2 = 0.0, math.inf
+            for i0 in ((near - 1) % n, near % n):  # the two segments around the nearest sample
+                ax, ay = xy[i0]
+                bx, by = xy[(i0 + 1) % n]
+                abx, aby = bx - ax, by - ay
+                t = min(max(((px - ax) * abx + (py - ay) * aby) / (abx * abx + aby * aby), 0.0),
+                        1.0)
+                fx, fy = ax + abx * t, ay + aby * t
+                d2 = (px - fx) * (px - fx) + (py - fy) * (py - fy)
+                if d2 < best_d2:
+                    best_d2, best_s = d2, s_rows[i0] + t * ds
+            best_s = best_s % length
+            f = (best_s % length) / ds  # as _interp: it wraps again
+            j0 = math.floor(f)
+            t = f - j0
+            j0 %= n
+            j1 = (j0 + 1) % n
+            cx, cy, cz = (a * (1.0 - t) + b * t for a, b in zip(self._xyz_rows[j0],
+                                                                self._xyz_rows[j1], strict=True))
+            nx, ny = (a * (1.0 - t) + b * t for a, b in zip(self._normal_rows[j0],
+                                                            self._normal_rows[j1], strict=True))
+            out_s.append(best_s)
+            out_cte.append((px - cx) * nx + (py - cy) * ny)
+            out_half.append(0.5 * (self._width_rows[j0] * (1.0 - t) + self._width_rows[j1] * t))
+            out_z.append(cz)
+        return Projection(s_m=np.array(out_s).reshape(shape),
+                          cte_m=np.array(out_cte).reshape(shape),
+                          half_width_m=np.array(out_half).reshape(shape),
+                          z_m=np.array(out_z).reshape(shape))
 
     def on_road(self, points_xy: np.ndarray) -> np.ndarray:
         """True where a point (e.g. a tyre contact point) lies on the drivable road surface."""

@@ -14,7 +14,7 @@ top speed 30 mph.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
@@ -84,6 +84,10 @@ class Controls:
     brake: float = 0.0  #: [0, 1]
 
     def clipped(self) -> Controls:
+        steering, throttle, brake = self.steering, self.throttle, self.brake
+        if -1.0 <= steering <= 1.0 and -1.0 <= throttle <= 1.0 and 0.0 <= brake <= 1.0:
+            return self  # already in range (NaN fails every comparison): nothing to clip
+
         def clip(value: float, low: float, high: float) -> float:
             if not math.isfinite(value):
                 return 0.0
@@ -200,8 +204,8 @@ def step(state: VehicleState, controls: Controls, dt_s: float, params: VehiclePa
     x = state.x_m + (new_v_x * cos_yaw - new_v_y * sin_yaw) * horizontal * dt_s
     y = state.y_m + (new_v_x * sin_yaw + new_v_y * cos_yaw) * horizontal * dt_s
     yaw = math.remainder(yaw, 2.0 * math.pi)
-    return replace(state, x_m=x, y_m=y, yaw_rad=yaw, v_x_mps=new_v_x, v_y_mps=new_v_y,
-                   r_radps=new_r, wheel_angle_rad=delta)
+    return VehicleState(x_m=x, y_m=y, yaw_rad=yaw, v_x_mps=new_v_x, v_y_mps=new_v_y,
+                        r_radps=new_r, wheel_angle_rad=delta)
 
 
 def _saturate(force: float, limit: float) -> float:

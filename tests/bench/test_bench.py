@@ -115,3 +115,25 @@ def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):
     finally:
         ray.shutdown()
     assert json.dumps(local, sort_keys=True) == json.dumps(distributed, sort_keys=True)
+
+
+def test_every_model_task_carries_the_policy_options_and_the_workers_drive_with_them(
+        tmp_path, tiny_models):
+    from clonedrive.drivers.network import load_policy
+
+    suite_path = tmp_path / "tiny.toml"
+    suite_path.write_text(SUITE, encoding="utf-8")
+    config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=2,
+                         max_seconds=4.0, scenery=False, steering_hold=0.3,
+                         steering_filter_s=0.1, slow_in_curves=True)
+    tasks, _ = plan_tasks(load_suite(config.suite), config)
+    models = [task for task in tasks if task["kind"] == "model"]
+    policy = load_policy(tiny_models[0], **config.policy_options())
+    for task in models:  # named as NetworkPolicy names them, so it drives the same way
+        options = task["policy_options"]
+        assert set(options) <= set(policy.options())
+        assert all(policy.options()[key] == value for key, value in options.items())
+    held = drive_batch(models[0])
+    loose = drive_batch({**models[0], "policy_options": {}})
+    assert [r["smoothness"] for r in held] != [r["smoothness"] for r in loose]
+    assert all(h["smoothness"] < lo["smoothness"] for h, lo in zip(held, loose, strict=True))

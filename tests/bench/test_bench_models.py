@@ -26,7 +26,7 @@ def test_a_students_model_is_benched_only_with_trust(tmp_path: Path) -> None:
     assert offline_mse(path, rows, trust=True) >= 0.0
     spec = EpisodeSpec(split="a", index=0, track="lake", speed_mph=10.0, family="clear", seed=0,
                        conditions=Conditions(), laps=1)
-    task = {"kind": "model", "model": path, "slow_in_curves": False, "scenery": False,
+    task = {"kind": "model", "model": path, "policy_options": {}, "scenery": False,
             "max_seconds": 1.0, "trust_model": True, "episodes": [spec]}
     [result] = drive_batch(task)
     assert result["distance_m"] > 0.0

@@ -76,17 +76,16 @@ def _drive(episodes: list[Episode], driver, specs: Sequence[EpisodeSpec]) -> lis
 
 
 def drive_batch(task: dict) -> list[dict]:
-    """Drive one batch: ``{"kind": "model", "model": path, "slow_in_curves": bool,
-    "scenery": bool, "episodes": [EpisodeSpec...]}`` or ``{"kind": "expert", "episodes":
+    """Drive one batch: ``{"kind": "model", "model": path, "policy_options": {...},
+    "scenery": bool, "episodes": [EpisodeSpec...]}`` (the options are NetworkPolicy's, as
+    :meth:`BenchConfig.policy_options` gives them) or ``{"kind": "expert", "episodes":
     [...]}``. Returns one result dict per episode, in order."""
     specs: list[EpisodeSpec] = list(task["episodes"])
     rules = {"max_seconds": task.get("max_seconds")}
     if task["kind"] == "expert":
         return _drive_expert(specs, rules)
     return _drive_model(task["model"], specs, rules,
-                        slow_in_curves=bool(task["slow_in_curves"]),
-                        steering_filter_s=float(task.get("steering_filter_s", 0.0)),
-                        steering_hold=float(task.get("steering_hold", 0.0)),
+                        policy_options=dict(task.get("policy_options", {})),
                         trust=bool(task.get("trust_model", False)),
                         runtime=str(task.get("runtime", "auto")),
                         scenery=bool(task.get("scenery", True)))
@@ -98,15 +97,12 @@ def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> l
 
 
 def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
-                 slow_in_curves: bool, scenery: bool, trust: bool = False,
-                 runtime: str = "auto", steering_filter_s: float = 0.0,
-                 steering_hold: float = 0.0) -> list[dict]:
+                 policy_options: dict, scenery: bool, trust: bool = False,
+                 runtime: str = "auto") -> list[dict]:
     from clonedrive.drivers.network import load_policy
     from clonedrive.episode.drivers import NetworkDriver
 
-    policy = load_policy(model_path, slow_in_curves=slow_in_curves, trust=trust,
-                         runtime=runtime, steering_filter_s=steering_filter_s,
-                         steering_hold=steering_hold)
+    policy = load_policy(model_path, trust=trust, runtime=runtime, **policy_options)
     import torch
 
     torch.set_num_threads(1)  # results must not depend on how many workers share the cores

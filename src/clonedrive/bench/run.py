@@ -67,6 +67,12 @@ class BenchConfig:
                                                  and self.max_seconds > 0):
             raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")
 
+    def policy_options(self) -> dict:
+        """The NetworkPolicy options each model drives with (as NetworkPolicy.options() names
+        them; the rest keep their defaults: drive.py's PI gains)."""
+        return {"slow_in_curves": self.slow_in_curves,
+                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold}
+
 
 def _label_and_path(entry: str) -> tuple[str, str]:
     label, sep, path = entry.partition("=")
@@ -104,9 +110,7 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
         label, path = _label_and_path(model)
         for i in range(0, len(episodes), config.batch):
             tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
-                          "slow_in_curves": config.slow_in_curves,
-                          "steering_filter_s": config.steering_filter_s,
-                          "steering_hold": config.steering_hold,
+                          "policy_options": config.policy_options(),
                           "trust_model": config.trust_model, "runtime": config.runtime,
                           "episodes": episodes[i:i + config.batch], **common})
     return tasks, refs

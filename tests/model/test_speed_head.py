@@ -121,3 +121,33 @@ def test_evaluate_drives_a_speed_head_model_at_its_learned_speed(tmp_path) -> No
     assert report["speed_head"] is True and "learned" in report["speed_control"]
     run = report["runs"][0]
     assert 8.0 < run["mean_speed_mph"] < 12.5  # held near 12 mph although the cap is 30
+
+
+def test_the_censored_speed_loss_reads_top_speed_labels_as_lower_bounds() -> None:
+    from clonedrive.model.losses import censored_speed_mse, speed_loss
+
+    y_true = np.array([[1.0], [1.0], [0.5], [0.5]], np.float32)
+    y_pred = np.array([[1.3], [0.8], [0.7], [0.3]], np.float32)
+    loss = keras.ops.convert_to_numpy(censored_speed_mse(y_true, y_pred))
+    # above a top-speed label: free; below it and either side of a lower label: squared error
+    np.testing.assert_allclose(loss, [0.0, 0.04, 0.04, 0.04], atol=1e-6)
+    assert speed_loss("mse") == "mse" and speed_loss("censored") is censored_speed_mse
+    with pytest.raises(ValueError, match="speed loss 'huber'"):
+        speed_loss("huber")
+    with pytest.raises(ValueError, match="speed_loss 'huber'; expected one of: mse, censored"):
+        TrainConfig(speed_loss="huber")
+
+
+def test_a_censored_speed_head_run_trains_resumes_and_loads(tmp_path) -> None:
+    recording = tmp_path / "expert"
+    record(RecordConfig(track="lake", seconds=4.0, speed_mph=30.0, scenery=False,
+                        start_time="2026-11-21T10:11:12.345"), recording, progress=False)
+    config = TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
+                         speed_head=True, speed_loss="censored", export_h5=False)
+    train(config, [recording], tmp_path / "run", progress=False)
+    resumed = train(dataclasses.replace(config, epochs=2), [recording], tmp_path / "run",
+                    resume=True, progress=False)
+    assert resumed.epochs_done == 2
+    assert all(np.isfinite(row["speed_mse"]) for row in resumed.history)
+    policy = load_policy(resumed.model_path, set_speed_mph=30.0)
+    assert policy.speed_head

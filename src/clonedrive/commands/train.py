@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from clonedrive.model.losses import SPEED_LOSSES
+
 HELP = "train a Keras steering network on recordings (a recipe file or folders)"
 DESCRIPTION = (
     "Train a network that predicts steering from one 160x320 RGB camera frame. Data comes from "
@@ -68,6 +70,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "by the set speed. Udacity's own drive.py expects one output")
     parser.add_argument("--speed-loss-weight", type=float, default=given,
                         help=f"weight of the speed loss (default {d.speed_loss_weight:g})")
+    parser.add_argument("--speed-loss", default=given, choices=SPEED_LOSSES,
+                        help=f"the speed head's loss (default {d.speed_loss}); censored: a "
+                             "label at the top speed (every straight) means 'at least that', so "
+                             "predicting above it costs nothing and the head does not drift "
+                             "below the cap on straights")
     parser.add_argument("--crop-top", dest="crop_top_px", type=int, default=given, metavar="PX",
                         help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
@@ -86,7 +93,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 _CONFIG_OPTIONS = (
     "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
     "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
-    "cache", "export_h5", "speed_head", "speed_loss_weight", "init_from", "crop_top_px",
+    "cache", "export_h5", "speed_head", "speed_loss_weight", "speed_loss", "init_from",
+    "crop_top_px",
 )
 
 

@@ -89,6 +89,7 @@ class TrainConfig:
     export_h5: bool = True  # also write model.h5
     speed_head: bool = False  # also learn the expert's target speed (output "target_speed")
     speed_loss_weight: float = 1.0  # weight of the speed MSE beside the steering MSE
+    speed_loss: str = "mse"  # or "censored": labels at the top speed are lower bounds
     init_from: str | None = None  # start from this model's weights (layers matched by name)
     crop_top_px: int = 80  # rows the model cuts from the top (model.architectures.CROP_TOP_PX)
 
@@ -109,6 +110,11 @@ class TrainConfig:
             raise ValueError("early_stopping_patience must be >= 1 or None")
         if not (self.speed_loss_weight >= 0 and math.isfinite(self.speed_loss_weight)):
             raise ValueError(f"speed_loss_weight must be >= 0, got {self.speed_loss_weight}")
+        from clonedrive.model.losses import SPEED_LOSSES
+
+        if self.speed_loss not in SPEED_LOSSES:
+            raise ValueError(f"speed_loss {self.speed_loss!r}; expected one of: "
+                             f"{', '.join(SPEED_LOSSES)}")
 
 
 @dataclass(frozen=True)
@@ -173,7 +179,10 @@ def train(
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
         if epochs_done > 0:
-            model = keras.saving.load_model(out / "last.keras", safe_mode=True)
+            from clonedrive.model.losses import CUSTOM_OBJECTS
+
+            model = keras.saving.load_model(out / "last.keras", safe_mode=True,
+                                            custom_objects=CUSTOM_OBJECTS)
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
         else:
             model = build_model(config.model, seed=config.seed, dropout=config.dropout,
@@ -244,10 +253,11 @@ def _compile(keras, model, config: TrainConfig) -> None:
                       metrics=[keras.metrics.MeanSquaredError(name="mse")])
         return
     from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
+    from clonedrive.model.losses import speed_loss
 
     model.compile(
         optimizer=optimizer,
-        loss={STEERING_OUTPUT: config.loss, SPEED_OUTPUT: config.loss},
+        loss={STEERING_OUTPUT: config.loss, SPEED_OUTPUT: speed_loss(config.speed_loss)},
         loss_weights={STEERING_OUTPUT: 1.0, SPEED_OUTPUT: config.speed_loss_weight},
         metrics={STEERING_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")],
                  SPEED_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")]},

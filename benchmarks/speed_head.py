@@ -61,8 +61,8 @@ def run_bench(model: str, suite: Path, out: Path, *, slow_in_curves: bool, worke
 def summary(model: dict) -> dict:
     runs = model["runs"]
     mountain = [r for r in runs if r["track"] == "mountain"]
-    ratios = [r["scores"]["lap_time_ratio"] for r in runs if r["scores"]["lap_time_ratio"]]
     timed = [r for r in runs if r["scores"]["lap_time_ratio"]]
+    ratios = [r["scores"]["lap_time_ratio"] for r in timed]
     slowest = max(timed, key=lambda r: r["scores"]["lap_time_ratio"]) if timed else None
     smooth = [r["scores"]["smoothness_ratio"] for r in runs if r["scores"]["smoothness_ratio"]]
     return {

@@ -73,8 +73,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed-loss", default=given, choices=SPEED_LOSSES,
                         help=f"the speed head's loss (default {d.speed_loss}); censored: a "
                              "label at the top speed (every straight) means 'at least that', so "
-                             "predicting above it costs nothing and the head does not drift "
-                             "below the cap on straights")
+                             "predicting above it costs nothing (measured 2026-12-01: no faster "
+                             "laps than mse; see model/losses.py)")
     parser.add_argument("--crop-top", dest="crop_top_px", type=int, default=given, metavar="PX",
                         help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "

@@ -151,3 +151,56 @@ def test_a_censored_speed_head_run_trains_resumes_and_loads(tmp_path) -> None:
     assert all(np.isfinite(row["speed_mse"]) for row in resumed.history)
     policy = load_policy(resumed.model_path, set_speed_mph=30.0)
     assert policy.speed_head
+
+
+def test_headroom_continues_the_braking_profile_above_the_top_speed() -> None:
+    from clonedrive.data.speed_labels import with_headroom
+    from clonedrive.drivers.expert import ExpertConfig
+    from clonedrive.world.vehicle import MPH_TO_MPS
+
+    top = TARGET_SPEED_SCALE_MPH
+    # One recording at 15 Hz and the top speed: open road, a bend at 15 mph (rows 40-49), open road.
+    rows = np.arange(60)
+    labels = np.where((rows >= 40) & (rows < 50), 15.0, top).astype(np.float32)
+    # Every row twice (a camera and its mirror image), and a second recording beside it.
+    recording = np.r_[np.zeros(120, np.int32), np.ones(60, np.int32)]
+    row = np.r_[np.repeat(rows, 2), rows]
+    time_s = row / 15.0
+    speed = np.full(180, top, np.float32)
+    given = np.r_[np.repeat(labels, 2), np.full(60, top, np.float32)]
+    out, raised = with_headroom(given, recording, row, time_s, speed, 1.2)
+    assert raised == 2 * 50 + 60
+    first = out[:120:2]
+    np.testing.assert_array_equal(first, out[1:120:2])  # a row's samples keep one label
+    np.testing.assert_array_equal(first[40:50], 15.0)  # the bend: unchanged
+    np.testing.assert_allclose(first[50:], 1.2 * top)  # no bend ahead: the ceiling
+    np.testing.assert_allclose(out[120:], 1.2 * top)  # the other recording sees no bend
+    metres_to_bend = (40 - rows[:40]) * top * MPH_TO_MPS / 15.0
+    reach = np.sqrt((15.0 * MPH_TO_MPS) ** 2 + 2 * ExpertConfig().brake_decel_mps2 *
+                    metres_to_bend) / MPH_TO_MPS
+    np.testing.assert_allclose(first[:40], np.clip(reach, top, 1.2 * top), rtol=1e-5)
+    assert first[2] > first[5] > first[12] > top == first[20] == first[39]  # a smooth rise
+    unchanged, _ = with_headroom(given, recording, row, time_s, speed, 1.0)
+    np.testing.assert_allclose(unchanged, given)
+    for bad in (0.9, 2.5, float("nan")):
+        with pytest.raises(ValueError, match="speed_headroom must be in"):
+            TrainConfig(speed_headroom=bad)
+
+
+def test_a_headroom_run_trains_its_top_speed_labels_above_the_cap(tmp_path) -> None:
+    from clonedrive.data.speed_labels import read_speed_labels
+
+    recording = tmp_path / "expert"
+    record(RecordConfig(track="lake", seconds=4.0, speed_mph=30.0, scenery=False,
+                        start_time="2026-11-21T10:11:12.345"), recording, progress=False)
+    labels = np.array(list(read_speed_labels(recording).speeds_mph.values()))
+    at_top = int(np.sum(labels >= 0.999 * TARGET_SPEED_SCALE_MPH))
+    assert 0 < at_top
+    config = TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
+                         speed_head=True, speed_headroom=1.25, export_h5=False, balance=False,
+                         correction=0.2)
+    result = train(config, [recording], tmp_path / "run", progress=False)
+    # every camera and its mirrored copy of a row at the top speed: 3 x 2 samples per row
+    assert result.dataset["speed_labels_raised"] == 6 * at_top
+    policy = load_policy(result.model_path, set_speed_mph=30.0)
+    assert policy.speed_head  # a head trained above the cap loads and drives like any other

@@ -75,6 +75,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "label at the top speed (every straight) means 'at least that', so "
                              "predicting above it costs nothing (measured 2026-12-01: no faster "
                              "laps than mse; see model/losses.py)")
+    parser.add_argument("--speed-headroom", type=float, default=given, metavar="H",
+                        help=f"speed labels at the top speed (every straight) continue the "
+                             f"expert's braking profile above it, up to H times it, H in [1, 2] "
+                             f"(default {d.speed_headroom:g}: off). The policy caps the learned "
+                             "speed at the set speed, so the head's scatter on a straight lands "
+                             "above the cap, not below (see data/speed_labels.py)")
     parser.add_argument("--crop-top", dest="crop_top_px", type=int, default=given, metavar="PX",
                         help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
@@ -93,8 +99,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 _CONFIG_OPTIONS = (
     "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
     "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
-    "cache", "export_h5", "speed_head", "speed_loss_weight", "speed_loss", "init_from",
-    "crop_top_px",
+    "cache", "export_h5", "speed_head", "speed_loss_weight", "speed_loss", "speed_headroom",
+    "init_from", "crop_top_px",
 )
 
 

@@ -106,6 +106,7 @@ class Samples:
     #: (n,) float32 the speed label [mph]: the expert's target speed where the log has one
     #: (``target_speed.csv``), else the recorded speed (human and Udacity logs)
     target_speed_mph: np.ndarray
+    recorded_speed_mph: np.ndarray  #: (n,) float32 the row's recorded speed [mph]
     recording_names: tuple[str, ...]
     skipped: dict[str, int]  # reason -> rows skipped by the log reader, all recordings
     skipped_details: list[str]  # "recording: detail" for every skipped row
@@ -133,6 +134,7 @@ class Samples:
             time_s=self.time_s[indices],
             weight=self.weight[indices],
             target_speed_mph=self.target_speed_mph[indices],
+            recorded_speed_mph=self.recorded_speed_mph[indices],
         )
 
     def compact(self) -> Samples:
@@ -326,7 +328,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
     path_index: dict[Path, int] = {}
     columns: dict[str, list] = {
         key: [] for key in ("image", "camera", "steering", "flip", "recording", "row", "time",
-                            "speed")
+                            "speed", "recorded_speed")
     }
     weights: list[np.ndarray] = []
     skipped: dict[str, int] = {}
@@ -370,6 +372,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
                     columns["row"].append(row.row)
                     columns["time"].append(time_s)
                     columns["speed"].append(speed_label)
+                    columns["recorded_speed"].append(row.speed_mph)
         added = len(columns["steering"]) - count_before
         weights.append(np.full(added, spec.weight, dtype=np.float32))
 
@@ -384,6 +387,7 @@ def expand(recipe: Recipe, *, verify_images: str = "exists") -> Samples:
         time_s=np.asarray(columns["time"], dtype=np.float64),
         weight=np.concatenate(weights) if weights else np.zeros(0, dtype=np.float32),
         target_speed_mph=np.asarray(columns["speed"], dtype=np.float32),
+        recorded_speed_mph=np.asarray(columns["recorded_speed"], dtype=np.float32),
         recording_names=tuple(spec.name for spec in recipe.recordings),
         skipped=skipped,
         skipped_details=skipped_details,

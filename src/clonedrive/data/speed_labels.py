@@ -17,6 +17,17 @@ A log without the file (a human's or the Udacity simulator's recording), or a ro
 falls back to the row's recorded speed (:func:`label_or_recorded`). Rows are appended and
 flushed one at a time, before the log row they belong to, so every log row a killed recorder
 left has its label. Bad lines are skipped and counted, never raised.
+
+**Headroom** (:func:`with_headroom`, ``train --speed-headroom H``): on every straight the label
+is the top speed, a bound, not the speed the expert would choose. Training on it, a head that is
+unsure whether a bend is coming predicts below the top speed, and the policy's cap at the set
+speed clips its scatter from above only, so the car drives slower than the expert on open road.
+With headroom, such a label continues the expert's own braking profile above the top speed, up
+to H times it: ``v = sqrt(v_next^2 + 2 a d)`` back from the next slower label along the
+recording (``a``: the expert's planned braking deceleration, ``d``: the distance driven, from the
+recorded speeds and times). Labels below the top speed are unchanged, and a label rises
+smoothly towards the bend instead of jumping, so the frames before a braking zone are not
+pulled faster than the expert brakes.
 """
 
 from __future__ import annotations
@@ -27,10 +38,14 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 LABELS_NAME = "target_speed.csv"
 LABELS_HEADER = "center,target_speed_mph"
 #: A labels file larger than this is not read (it would hold far more rows than any log).
 MAX_LABELS_BYTES = 256 * 1024**2
+#: A label at or above this fraction of the top speed is at the top speed (29.97 mph of 30).
+SATURATED_LABEL = 0.999
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 
@@ -125,3 +140,38 @@ class SpeedLabelWriter:
         written = os.write(self.fileno(), data)
         while written < len(data):
             written += os.write(self.fileno(), data[written:])
+
+
+def with_headroom(labels_mph: np.ndarray, recording: np.ndarray, row: np.ndarray,
+                  time_s: np.ndarray, recorded_speed_mph: np.ndarray, headroom: float
+                  ) -> tuple[np.ndarray, int]:
+    """``(labels [mph], how many were raised)``: each label at the top speed continued above
+    it (see the module doc), per sample; samples are grouped into rows by ``(recording, row)``
+    and each recording's rows taken in CSV order."""
+    from clonedrive.drivers.expert import ExpertConfig
+    from clonedrive.drivers.network import TARGET_SPEED_SCALE_MPH
+    from clonedrive.world.vehicle import MPH_TO_MPS
+
+    labels = np.asarray(labels_mph, dtype=np.float32)
+    out = labels.copy()
+    top = TARGET_SPEED_SCALE_MPH * MPH_TO_MPS
+    ceiling = headroom * top
+    decel = ExpertConfig().brake_decel_mps2
+    saturated = labels >= np.float32(SATURATED_LABEL * TARGET_SPEED_SCALE_MPH)
+    for number in np.unique(recording):
+        members = np.flatnonzero(recording == number)
+        rows, first, inverse = np.unique(row[members], return_index=True, return_inverse=True)
+        picks = members[first]  # one sample per row, rows in CSV order
+        speed = np.maximum(np.nan_to_num(recorded_speed_mph[picks].astype(np.float64)), 0.0)
+        speed *= MPH_TO_MPS
+        step = np.maximum(np.diff(time_s[picks].astype(np.float64)), 0.0)
+        gaps = 0.5 * (speed[1:] + speed[:-1]) * step  # metres driven between rows
+        bound = np.where(saturated[picks], ceiling, labels[picks] * MPH_TO_MPS)
+        profile = bound.copy()
+        for index in range(len(rows) - 2, -1, -1):
+            reach = math.sqrt(profile[index + 1] ** 2 + 2.0 * decel * gaps[index])
+            profile[index] = min(bound[index], reach)
+        raised = np.maximum(profile, top) / MPH_TO_MPS
+        mask = saturated[members]
+        out[members[mask]] = raised[inverse.reshape(-1)][mask].astype(np.float32)
+    return out, int(saturated.sum())

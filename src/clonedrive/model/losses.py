@@ -18,10 +18,10 @@ of suite v2's 14 tracks was 1.10x the expert's against 1.08x. So the default sta
 
 from __future__ import annotations
 
+from clonedrive.data.speed_labels import SATURATED_LABEL
+
 #: The speed losses ``TrainConfig.speed_loss`` takes.
 SPEED_LOSSES = ("mse", "censored")
-#: A normalised label at or above this is at the top speed (29.97 mph of 30).
-SATURATED_LABEL = 0.999
 
 
 def censored_speed_mse(y_true, y_pred):

@@ -33,7 +33,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +90,7 @@ class TrainConfig:
     speed_head: bool = False  # also learn the expert's target speed (output "target_speed")
     speed_loss_weight: float = 1.0  # weight of the speed MSE beside the steering MSE
     speed_loss: str = "mse"  # or "censored": labels at the top speed are lower bounds
+    speed_headroom: float = 1.0  # labels at the top speed rise up to this multiple of it
     init_from: str | None = None  # start from this model's weights (layers matched by name)
     crop_top_px: int = 80  # rows the model cuts from the top (model.architectures.CROP_TOP_PX)
 
@@ -115,6 +116,8 @@ class TrainConfig:
         if self.speed_loss not in SPEED_LOSSES:
             raise ValueError(f"speed_loss {self.speed_loss!r}; expected one of: "
                              f"{', '.join(SPEED_LOSSES)}")
+        if not (math.isfinite(self.speed_headroom) and 1.0 <= self.speed_headroom <= 2.0):
+            raise ValueError(f"speed_headroom must be in [1, 2], got {self.speed_headroom}")
 
 
 @dataclass(frozen=True)
@@ -408,6 +411,16 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         balanced = _unbalanced(balanced)
         lines.append(f"balancing off: {len(samples)} samples")
     save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
+    raised = 0
+    if config.speed_head and config.speed_headroom != 1.0:
+        from clonedrive.data.speed_labels import with_headroom
+
+        labels, raised = with_headroom(samples.target_speed_mph, samples.recording, samples.row,
+                                       samples.time_s, samples.recorded_speed_mph,
+                                       config.speed_headroom)
+        samples = replace(samples, target_speed_mph=labels)
+        lines.append(f"speed head: {raised} labels at the top speed continue the expert's "
+                     f"braking profile up to {config.speed_headroom:g}x it (headroom)")
 
     split = split_samples(
         samples, config.split, np.random.default_rng([config.seed, 2]),
@@ -462,6 +475,7 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         "samples_before_balance": int(balanced.counts_before.sum()),
         "samples_after_balance": int(balanced.counts_after.sum()) + kept_for_speed,
         "speed_samples_kept": kept_for_speed,
+        "speed_labels_raised": raised,  # labels at the top speed trained with headroom
         "balance": {
             "enabled": config.balance,
             "bin_edges": [round(float(edge), 6) for edge in balanced.bin_edges],

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.dagger import DaggerConfig, MixedDriver
+from clonedrive.dagger import DaggerConfig, MixedDriver, format_table
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
@@ -64,7 +64,8 @@ def test_config_is_validated() -> None:
     assert DaggerConfig(beta=0.5, beta_decay=0.5).beta_at(3) == pytest.approx(0.125)
 
 
-def test_one_dagger_iteration_end_to_end(tmp_path: Path, capsys) -> None:
+def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: Path,
+                                                                      capsys) -> None:
     data = tmp_path / "expert"
     record(RecordConfig(track="lake", seconds=3.0, speed_mph=15.0, scenery=False,
                         start_time="2026-11-21T10:11:12.345"), data, progress=False)
@@ -72,12 +73,13 @@ def test_one_dagger_iteration_end_to_end(tmp_path: Path, capsys) -> None:
     train(TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
                       speed_head=True, export_h5=False), [data], base, progress=False)
     out = tmp_path / "dagger"
-    code = main(["dagger", str(base), "--out", str(out), "--iterations", "1", "--track", "lake",
+    code = main(["dagger", str(base), "--out", str(out), "--iterations", "2", "--plain-each",
+                 "--track", "lake",
                  "--eval-track", "lake", "--unseen", "0", "--epochs", "1", "--speed", "15",
                  "--max-seconds", "3", "--no-scenery"])
     assert code == 0
     report = json.loads((out / "dagger.json").read_text())
-    base_row, first = report["iterations"]
+    base_row, first, second = report["iterations"]
     assert base_row["iteration"] == 0 and first["iteration"] == 1 and first["beta"] == 0.5
     # The expert labelled every visited frame: a Udacity log plus its target speeds.
     log = read_driving_log(out / "iter_01" / "data" / "lake")
@@ -86,8 +88,19 @@ def test_one_dagger_iteration_end_to_end(tmp_path: Path, capsys) -> None:
     assert first["collect"]["takeovers_per_km"] is not None
     assert (out / "iter_01" / "train" / "model.keras").is_file()
     assert first["eval"]["builtin"]["runs"] == 1
-    # Plain cloning got as many extra expert labels.
+    assert second["beta"] == 0.25 and second["labels_total"] == 90
+    # Plain cloning got as many extra expert labels, and as many epochs, at each iteration.
+    (early,) = report["plain_each"]
     plain = report["plain"]
-    assert plain["labels_total"] == first["labels_total"] == 45
+    assert (early["iteration"], early["labels_total"], early["epochs"]) == (1, 45, 1)
+    assert (plain["iteration"], plain["labels_total"], plain["epochs"]) == (2, 90, 2)
+    assert early["eval"]["builtin"]["runs"] == plain["eval"]["builtin"]["runs"] == 1
+    assert (out / "plain_01" / "train" / "model.keras").is_file()
+    assert (out / "plain" / "train" / "model.keras").is_file()
     assert (out / "dagger.png").is_file()
-    assert "plain" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "plain cloning with 45 extra expert labels (1 epochs)" in printed
+    # The table lists both plain rows at their iterations.
+    table = [line.split()[:2] for line in format_table(report).splitlines()[2:]]
+    assert table == [["0", "base"], ["1", "dagger"], ["2", "dagger"], ["1", "plain"],
+                     ["2", "plain"]]

@@ -32,7 +32,9 @@ too: **plain cloning with as many extra expert labels** -- the expert itself dri
 tracks (with ``plain_noise`` steering noise, its labels clean) until it has recorded as many
 rows as DAgger collected in all, and the base model is retrained on base + those rows for as
 many epochs as DAgger trained in all (``plain/``). So any difference comes from *where* the
-labels are, not how many.
+labels are, not how many. With ``plain_each`` it is also run at every earlier iteration's
+label count and epochs (``plain_NN/``), so the two methods are compared as curves, not only
+where both may have reached the benchmark's ceiling.
 
 ``dagger.json`` holds per iteration: beta, labels collected (and in total), expert share of the
 driving, takeovers and takeovers per km, and the evaluation's success %, interventions per km,
@@ -83,6 +85,8 @@ class DaggerConfig:
     takeover_release_cte_m: float = 0.5  #: the network gets the car back within this of centre
     takeover_min_s: float = 1.0  #: a takeover lasts at least this long [s]
     plain: bool = True  #: also train plain cloning with as many extra expert labels
+    #: ... and at every earlier iteration's label count too (the comparison as a curve)
+    plain_each: bool = False
     plain_noise: float = 0.15  #: the expert's steering noise recording those labels
     seed: int = 0
     max_seconds: float | None = None  #: cap per episode (quick runs)
@@ -487,23 +491,40 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
                                             progress=progress)})
         _write_report(out, config, rows, None, references)
 
-    plain = None
+    plain, plain_each = None, []
     if config.plain:
-        folder = out / "plain"
-        _say(progress, f"[dagger] plain cloning with {labels_total} extra expert labels")
-        recorded = _reuse_json(folder / "data" / "record.json") or record_plain(
-            config, labels_total, folder / "data")
-        plain_folders = [folder / "data" / item.name for item in sorted(
-            (folder / "data").iterdir()) if (item / "driving_log.csv").is_file()]
-        plain_model = retrain(base_config, aggregate_recipe(base_recipe, plain_folders),
-                              base_model, config.epochs * config.iterations,
-                              config.learning_rate, folder / "train", seed=config.seed,
-                              progress=progress)
-        plain = {"method": "plain", "labels_total": recorded["labels"],
-                 "epochs": config.epochs * config.iterations, "model": str(plain_model),
-                 "eval": evaluate_model(plain_model, config, folder / "eval", references,
-                                        progress=progress)}
-    return _write_report(out, config, rows, plain, references)
+        # Earlier iterations' label counts first (with plain_each), then the last one's.
+        counts = [(row["iteration"], row["labels_total"]) for row in rows[1:]]
+        for iteration, labels in counts if config.plain_each else counts[-1:]:
+            last = iteration == config.iterations
+            folder = out / ("plain" if last else f"plain_{iteration:02d}")
+            _say(progress, f"[dagger] plain cloning with {labels} extra expert labels "
+                           f"({config.epochs * iteration} epochs)")
+            entry = train_plain(config, base_config, base_recipe, base_model, labels, iteration,
+                                folder, references, progress=progress)
+            if last:
+                plain = entry
+            else:
+                plain_each.append(entry)
+                _write_report(out, config, rows, None, references, plain_each)
+    return _write_report(out, config, rows, plain, references, plain_each)
+
+
+def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path, labels: int,
+                iteration: int, folder: Path, references: dict, *, progress: bool) -> dict:
+    """Plain cloning with ``labels`` extra expert labels, trained from the base model for as
+    many epochs as DAgger had trained by ``iteration``, and evaluated as the iterations are."""
+    recorded = _reuse_json(folder / "data" / "record.json") or record_plain(
+        config, labels, folder / "data")
+    folders = [folder / "data" / item.name for item in sorted((folder / "data").iterdir())
+               if (item / "driving_log.csv").is_file()]
+    model = retrain(base_config, aggregate_recipe(base_recipe, folders), base_model,
+                    config.epochs * iteration, config.learning_rate, folder / "train",
+                    seed=config.seed, progress=progress)
+    return {"method": "plain", "iteration": iteration, "labels_total": recorded["labels"],
+            "epochs": config.epochs * iteration, "model": str(model),
+            "eval": evaluate_model(model, config, folder / "eval", references,
+                                   progress=progress)}
 
 
 def _reuse_json(path: Path) -> dict | None:
@@ -518,9 +539,9 @@ def _reuse_json(path: Path) -> dict | None:
 
 
 def _write_report(out: Path, config: DaggerConfig, rows: list[dict], plain: dict | None,
-                  references: dict) -> dict:
+                  references: dict, plain_each: Sequence[dict] = ()) -> dict:
     report = {"config": dataclasses.asdict(config), "iterations": rows, "plain": plain,
-              "expert": references}
+              "plain_each": list(plain_each), "expert": references}
     write_json_atomic(out / DAGGER_JSON, report)
     plot_dagger(report, out / DAGGER_PNG)
     return report
@@ -537,7 +558,7 @@ def plot_dagger(report: dict, path: Path) -> Path:
     from clonedrive.config import atomic_path
 
     rows = report["iterations"]
-    plain = report.get("plain")
+    curve = _plain_rows(report)
     figure = Figure(figsize=(11, 3.8), dpi=100)
     axes = figure.subplots(1, 3)
     iterations = [row["iteration"] for row in rows]
@@ -557,11 +578,14 @@ def plot_dagger(report: dict, path: Path) -> Path:
             values = [row["eval"].get(split, {}).get(figure_key) for row in rows]
             values = [math.nan if value is None else value for value in values]
             ax.plot(iterations, values, "o-", color=colours[split], label=f"DAgger, {split}")
-            if plain is not None and split in plain["eval"]:
-                value = plain["eval"][split].get(figure_key)
-                if value is not None:
-                    ax.axhline(value, color=colours[split], linestyle="--",
-                               label=f"plain cloning, {split}")
+            points = [(row["iteration"], row["eval"][split].get(figure_key)) for row in curve
+                      if split in row["eval"] and row["eval"][split].get(figure_key) is not None]
+            if len(points) > 1:  # plain cloning at each iteration's label count
+                ax.plot(*zip(*points, strict=True), "x--", color=colours[split],
+                        label=f"plain cloning (as many labels), {split}")
+            elif points:
+                ax.axhline(points[0][1], color=colours[split], linestyle="--",
+                           label=f"plain cloning, {split}")
         ax.set_title(title)
         ax.set_xlabel("iteration (0 = base model)")
         ax.grid(True, alpha=0.3)
@@ -585,9 +609,17 @@ def plot_dagger(report: dict, path: Path) -> Path:
     return path
 
 
+def _plain_rows(report: dict) -> list[dict]:
+    """The plain-cloning rows of a report, by iteration (an older report's one has none)."""
+    rows = list(report.get("plain_each") or []) + ([report["plain"]] if report.get("plain")
+                                                   else [])
+    return [dict(row, iteration=row.get("iteration", report["config"]["iterations"]))
+            for row in rows]
+
+
 def format_table(report: dict) -> str:
     """The printed table: one row per iteration (and plain cloning), figures per split."""
-    rows = list(report["iterations"]) + ([report["plain"]] if report.get("plain") else [])
+    rows = list(report["iterations"]) + _plain_rows(report)
     splits = sorted({name for row in rows for name in row["eval"] if name != "overall"})
     splits.append("overall")
     head = f"{'iter':<6}{'method':<8}{'beta':>6}{'labels':>8}{'tko/km':>8}"

@@ -51,6 +51,10 @@ def add_arguments(parser) -> None:
                         help="bench worker processes")
     parser.add_argument("--no-plain", dest="plain", action="store_false",
                         help="skip the plain-cloning comparison")
+    parser.add_argument("--plain-each", action="store_true",
+                        help="run the plain-cloning comparison at every iteration's label "
+                             "count, not only the last (a curve beside DAgger's; costs as many "
+                             "more trainings)")
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap on simulated seconds per episode (quick runs)")
     parser.add_argument("--no-scenery", dest="scenery", action="store_false")
@@ -72,6 +76,7 @@ def run(args) -> int:
             eval_tracks=tuple(args.eval_track or d.eval_tracks), eval_laps=args.eval_laps,
             eval_unseen=args.unseen, bench_suite=args.suite,
             bench_splits=tuple(args.bench_split or ()), workers=args.workers, plain=args.plain,
+            plain_each=args.plain_each,
             max_seconds=args.max_seconds,
             scenery=args.scenery, seed=args.seed)
         for name in (*config.tracks, *config.eval_tracks):

@@ -41,9 +41,10 @@ def build(ctx: ReportContext) -> list[Section]:
     for split in splits:
         headers += [f"{split} success %", f"{split} int./km", f"{split} lap time ×"]
     rows = []
-    for row in [*rows_in, *([plain] if plain else [])]:
+    plains = [*(report.get("plain_each") or []), *([plain] if plain else [])]
+    for row in [*rows_in, *plains]:
         collect = row.get("collect") or {}
-        name = (f"plain cloning ({row.get('epochs', '?')} epochs)" if row is plain
+        name = (f"plain cloning ({row.get('epochs', '?')} epochs)" if row.get("method") == "plain"
                 else str(row.get("iteration")))
         cells = [name, fmt.num(row.get("beta")), fmt.count(row.get("labels_total")),
                  fmt.num(collect.get("takeovers_per_km"))]
@@ -62,7 +63,8 @@ def build(ctx: ReportContext) -> list[Section]:
         "car before it left the road (counted per km of collection). The labels were added "
         "to the training data and the network retrained from its previous weights. Plain "
         "cloning got the same number of extra expert labels, recorded by the expert driving "
-        "the same tracks, for comparison.")
+        "the same tracks, for comparison"
+        + (", at every iteration's label count." if report.get("plain_each") else "."))
     blocks: list = [Paragraph(text), Table(tuple(headers), tuple(rows),
                                            align="l" + "r" * (len(headers) - 1))]
     png = path.parent / "dagger.png"

@@ -187,7 +187,8 @@ def test_headroom_continues_the_braking_profile_above_the_top_speed() -> None:
             TrainConfig(speed_headroom=bad)
 
 
-def test_a_headroom_run_trains_its_top_speed_labels_above_the_cap(tmp_path) -> None:
+@pytest.mark.parametrize("balance", [False, True])
+def test_a_headroom_run_trains_its_top_speed_labels_above_the_cap(tmp_path, balance) -> None:
     from clonedrive.data.speed_labels import read_speed_labels
 
     recording = tmp_path / "expert"
@@ -197,10 +198,13 @@ def test_a_headroom_run_trains_its_top_speed_labels_above_the_cap(tmp_path) -> N
     at_top = int(np.sum(labels >= 0.999 * TARGET_SPEED_SCALE_MPH))
     assert 0 < at_top
     config = TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
-                         speed_head=True, speed_headroom=1.25, export_h5=False, balance=False,
-                         correction=0.2)
+                         speed_head=True, speed_headroom=1.25, export_h5=False,
+                         balance=balance, correction=0.2)
     result = train(config, [recording], tmp_path / "run", progress=False)
+    dataset = result.dataset
+    if balance:  # balancing drops samples, but only after the profile has seen them all
+        assert dataset["samples_after_balance"] < dataset["samples_before_balance"]
     # every camera and its mirrored copy of a row at the top speed: 3 x 2 samples per row
-    assert result.dataset["speed_labels_raised"] == 6 * at_top
+    assert dataset["speed_labels_raised"] == 6 * at_top
     policy = load_policy(result.model_path, set_speed_mph=30.0)
     assert policy.speed_head  # a head trained above the cap loads and drives like any other

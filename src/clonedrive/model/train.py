@@ -365,7 +365,8 @@ class _PreparedData:
 
 def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: bool
                   ) -> _PreparedData:
-    """expand -> balance -> split -> decode the used images once (unusable ones skipped)."""
+    """expand -> speed-label headroom -> balance -> split -> decode the used images once
+    (unusable ones skipped)."""
     from clonedrive.data.balance import balance_steering, save_balance_plots
     from clonedrive.data.batches import FRAME_BYTES, ImageCache
     from clonedrive.data.recipe import expand
@@ -391,6 +392,20 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
             f"speed labels: the expert's target speed on {samples.rows_with_target_speed} rows, "
             f"the recorded speed on {samples.rows_read - samples.rows_with_target_speed}")
 
+    # Headroom first: the profile is counted back along whole recordings, before balancing
+    # drops any of their samples.
+    raised = 0
+    if config.speed_head and config.speed_headroom != 1.0:
+        from clonedrive.data.speed_labels import with_headroom
+
+        labels, raised = with_headroom(samples.target_speed_mph, samples.recording, samples.row,
+                                       samples.time_s, samples.recorded_speed_mph,
+                                       config.speed_headroom)
+        samples = replace(samples, target_speed_mph=labels)
+        lines.append(f"speed head: {raised} labels at the top speed continue the expert's "
+                     f"braking profile up to {config.speed_headroom:g}x it (headroom, before "
+                     "balancing)")
+
     balance_rng = np.random.default_rng([config.seed, 1])
     kept_for_speed = 0
     if config.balance:
@@ -411,17 +426,6 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         balanced = _unbalanced(balanced)
         lines.append(f"balancing off: {len(samples)} samples")
     save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
-    raised = 0
-    if config.speed_head and config.speed_headroom != 1.0:
-        from clonedrive.data.speed_labels import with_headroom
-
-        labels, raised = with_headroom(samples.target_speed_mph, samples.recording, samples.row,
-                                       samples.time_s, samples.recorded_speed_mph,
-                                       config.speed_headroom)
-        samples = replace(samples, target_speed_mph=labels)
-        lines.append(f"speed head: {raised} labels at the top speed continue the expert's "
-                     f"braking profile up to {config.speed_headroom:g}x it (headroom)")
-
     split = split_samples(
         samples, config.split, np.random.default_rng([config.seed, 2]),
         val_fraction=config.val_fraction, block_s=config.block_s,

@@ -10,6 +10,12 @@ what Panda3D itself needs for that much geometry (1.0 is no overhead; target >= 
 ``rig_ratio`` = our camera rig / the same scene rendered through bare Panda3D calls (pose,
 render, raw RAM image): the overhead of our per-frame code alone, apart from the scene's content.
 
+The bare grid spreads its triangles evenly over 960 m, so a camera sees few of them; ours lie
+along the road the camera is on. ``drawn_per_camera`` counts the triangles Panda3D's culling
+hands the renderer in each frame (the nodes whose bounds meet a camera's frustum, within their
+LOD distance; the same count for both scenes), and ``render_ratio_drawn`` compares our scene
+against a denser bare grid that draws as many triangles per frame as ours does.
+
 Prints figures per track (wall-clock and this process's CPU time: other work on the machine
 slows the wall clock, not the CPU figure) and ends with one JSON line:
 ``{"render_ratio": <slower track>, "camera_frames_per_s": <slower track, wall clock>, ...}``.
@@ -29,6 +35,41 @@ import numpy as np
 
 from clonedrive.udacity_spec import CONTROL_HZ
 from clonedrive.world.vehicle import MPH_TO_MPS
+
+
+def drawn_triangles(root, camera) -> int:
+    """Triangles in the Geoms that view-frustum culling hands the renderer for ``camera`` (a
+    NodePath of a Camera): every visible GeomNode whose bounds meet the lens's frustum and,
+    below an LODNode, lies within its switch distance. Back faces and the parts the rasteriser
+    clips away are counted too, alike in both scenes."""
+    from panda3d.core import LODNode
+
+    frustum = camera.node().get_lens().make_bounds()
+    frustum.xform(camera.get_mat(root))
+    eye = camera.get_pos(root)
+    lod_type = LODNode.get_class_type()
+    total = 0
+    for path in root.find_all_matches("**/+GeomNode"):
+        if path.is_hidden():
+            continue
+        near_enough = True
+        ancestor = path.get_parent()
+        while near_enough and not ancestor.is_empty():
+            node = ancestor.node()
+            if node.is_of_type(lod_type):
+                distance = (root.get_relative_point(ancestor, node.get_center()) - eye).length()
+                near_enough = node.get_out(0) <= distance < node.get_in(0)
+            ancestor = ancestor.get_parent()
+        if not near_enough:
+            continue
+        bounds = path.get_bounds()
+        bounds.xform(path.get_parent().get_mat(root))
+        if frustum.contains(bounds):
+            geom_node = path.node()
+            total += sum(geom_node.get_geom(i).get_primitive(j).get_num_faces()
+                         for i in range(geom_node.get_num_geoms())
+                         for j in range(geom_node.get_geom(i).get_num_primitives()))
+    return total
 
 
 def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
@@ -74,12 +115,20 @@ def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
         raw_cpu_s = time.process_time() - raw_start
         cameras = len(rig.cameras)
         triangles = scene.triangle_count
+        drawn = []
+        for i in range(0, steps, 20):  # after timing: counting is not part of a frame's cost
+            s = (warmup + i) * step_m
+            x, y, z = track.point(s)
+            scene.set_car_pose(float(x), float(y), float(z), float(track.heading_at(s)),
+                               float(track.grade(s)))
+            drawn += [drawn_triangles(scene.root, node) for node in rig._nodes.values()]
     return {
         "track": track_name,
         "steps": steps,
         "cameras": cameras,
         "build_s": round(build_s, 2),
         "triangles": triangles,
+        "drawn_per_camera": float(np.mean(drawn)),
         "steps_per_s": steps / wall_s,
         "camera_frames_per_s": steps * cameras / wall_s,
         "cpu_camera_frames_per_s": steps * cameras / cpu_s,
@@ -198,9 +247,14 @@ def measure_bare(triangles: int, steps: int, cameras: int = 3, width: int = 320,
         drive(steps, warmup * step_m)
         wall_s = time.perf_counter() - wall_start
         cpu_s = time.process_time() - cpu_start
+        drawn = []
+        for i in range(0, steps, 20):
+            car.set_pos(-400.0 + (warmup + i) * step_m, 3.0, 0.0)
+            drawn += [drawn_triangles(world, node) for node in world.find_all_matches("**/+Camera")]
     finally:
         engine.close()
-    return {"triangles": made, "camera_frames_per_s": steps * cameras / wall_s,
+    return {"triangles": made, "drawn_per_camera": float(np.mean(drawn)),
+            "camera_frames_per_s": steps * cameras / wall_s,
             "cpu_camera_frames_per_s": steps * cameras / cpu_s}
 
 
@@ -215,10 +269,17 @@ def main() -> None:
     for name in args.tracks:
         result = measure(name, args.steps)
         bare = measure_bare(result["triangles"], args.steps, result["cameras"])
+        # The same grid made denser, until a frame of it draws as many triangles as ours do.
+        denser = round(bare["triangles"] * result["drawn_per_camera"]
+                       / max(bare["drawn_per_camera"], 1.0))
+        bare_drawn = measure_bare(max(denser, bare["triangles"]), args.steps, result["cameras"])
         # CPU time is the fairer basis: other processes on the machine slow the wall clock.
         result["bare"] = bare
+        result["bare_drawn"] = bare_drawn
         result["render_ratio"] = (result["cpu_camera_frames_per_s"]
                                   / bare["cpu_camera_frames_per_s"])
+        result["render_ratio_drawn"] = (result["cpu_camera_frames_per_s"]
+                                        / bare_drawn["cpu_camera_frames_per_s"])
         result["rig_ratio"] = (result["cpu_camera_frames_per_s"]
                                / result["raw_cpu_camera_frames_per_s"])
         results[name] = result
@@ -234,6 +295,13 @@ def main() -> None:
             f"render_ratio {result['render_ratio']:.2f} (target >= 0.9)"
         )
         print(
+            f"{'':10s} triangles drawn per camera frame: ours {result['drawn_per_camera']:.0f}, "
+            f"the bare grid's {bare['drawn_per_camera']:.0f}; a bare grid of "
+            f"{bare_drawn['triangles']} triangles draws {bare_drawn['drawn_per_camera']:.0f}: "
+            f"{bare_drawn['cpu_camera_frames_per_s']:6.1f} frames per CPU second -> "
+            f"render_ratio_drawn {result['render_ratio_drawn']:.2f}"
+        )
+        print(
             f"{'':10s} our scene through bare Panda3D calls: "
             f"{result['raw_cpu_camera_frames_per_s']:6.1f} camera frames per CPU second -> "
             f"our rig's own overhead ratio {result['rig_ratio']:.2f}"
@@ -243,6 +311,8 @@ def main() -> None:
         "render_ratio": round(min(r["render_ratio"] for r in results.values()), 3),
         "render_ratio_per_track": {name: round(r["render_ratio"], 3)
                                    for name, r in results.items()},
+        "render_ratio_drawn": round(min(r["render_ratio_drawn"] for r in results.values()), 3),
+        "drawn_per_camera": {name: round(r["drawn_per_camera"]) for name, r in results.items()},
         "rig_ratio": round(min(r["rig_ratio"] for r in results.values()), 3),
         "camera_frames_per_s": round(slowest["camera_frames_per_s"], 1),
         "per_track": {name: round(r["camera_frames_per_s"], 1) for name, r in results.items()},

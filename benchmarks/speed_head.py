@@ -55,7 +55,26 @@ def run_bench(model: str, suite: Path, out: Path, *, slow_in_curves: bool, worke
                          steering_hold=steering_hold,
                          max_seconds=max_seconds)
     report = bench(config, out, progress=True)
-    return next(iter(report["models"].values()))
+    model = next(iter(report["models"].values()))
+    return {**model, "reference": report["reference"]}
+
+
+#: The smoothness figures besides the steering rate, each as mean run / expert on the same track.
+OTHER_SMOOTHNESS = ("steering_jerk_per_s2", "lateral_accel_rms_mps2", "lateral_jerk_mps3")
+
+
+def smoothness_ratios(runs: list[dict], reference: dict) -> dict:
+    """Mean over the runs of each of :data:`OTHER_SMOOTHNESS` over the expert's reference run
+    on the same track and speed (runs without a reference, or a zero one, are left out)."""
+    ratios = {}
+    for figure in OTHER_SMOOTHNESS:
+        values = []
+        for run in runs:
+            expert = reference.get(f"{run['track']}@{run['speed_mph']:g}", {}).get(figure)
+            if expert and run.get(figure) is not None:
+                values.append(run[figure] / expert)
+        ratios[figure] = round(sum(values) / len(values), 4) if values else None
+    return ratios
 
 
 def summary(model: dict) -> dict:
@@ -72,6 +91,7 @@ def summary(model: dict) -> dict:
         "max_lap_time_ratio": round(max(ratios), 4) if ratios else None,
         "mean_lap_time_ratio": round(sum(ratios) / len(ratios), 4) if ratios else None,
         "mean_smoothness_ratio": round(sum(smooth) / len(smooth), 4) if smooth else None,
+        "mean_smoothness_ratios_other": smoothness_ratios(runs, model.get("reference", {})),
         "slowest": (f"{slowest['track']} ({slowest['scores']['lap_time_ratio']:.3f})"
                     if slowest else None),
         "splits": {name: {key: figures.get(key) for key in
@@ -114,6 +134,9 @@ def main() -> int:
               f"{result['mean_lap_time_ratio']} max {result['max_lap_time_ratio']} "
               f"(target <= 1.05), smoothness ratio {result['mean_smoothness_ratio']} "
               f"(target <= 1.2)")
+        others = ", ".join(f"{name} {value}" for name, value in
+                           result["mean_smoothness_ratios_other"].items())
+        print(f"  other smoothness figures vs the expert (mean ratio): {others}")
         for split, values in result["splits"].items():
             print(f"  {split:<20} {values}")
         print(f"  slowest lap against the expert: {result['slowest']}")

@@ -23,6 +23,12 @@ How it stays fast in a software renderer:
 - textures are small, nearest-neighbour sampled with mipmaps (the software renderer ignores
   bilinear filtering: measured identical output).
 
+Frames are the same for the same pose in every scene of a track: the opaque geometry is drawn in
+scene-graph order (:data:`DRAW_BIN`, unsorted), not in Panda3D's default state-sorted order. That
+order follows the addresses of render states in memory, and where two surfaces lie in one plane
+(a kerb on the road) it decides which one shows: a second scene of the same track in the same
+process drew a few pixels of its first frame differently, and so drove differently.
+
 Measured with ``benchmarks/render.py`` (3 cameras, 320x160, full scenery): lake ~970 and
 mountain ~770 camera frames per CPU second on the 2-core development machine.
 """
@@ -62,6 +68,9 @@ HORIZON_WALL = 0.93
 
 #: How far below the horizon the sky cylinder reaches [deg]: deep valleys in the mountains.
 _SKY_DEPRESSION_DEG = {"lake": 4.0, "mountain": 10.0}
+#: The cull bin of the scene's opaque geometry: drawn in scene-graph order (see the module),
+#: where Panda3D's "opaque" bin draws in state order; it has the opaque bin's place (sort 20).
+DRAW_BIN = "clonedrive-opaque"
 #: Sort order inside Panda3D's "fixed" bin (drawn after the opaque bin, in this order).
 _BIN_WATER = 0
 _BIN_SKY = 10
@@ -174,6 +183,17 @@ class RenderEngine:
         self._unload()
 
 
+def _draw_bin() -> str:
+    """:data:`DRAW_BIN`, added to Panda3D's bins the first time a scene needs it."""
+    from panda3d.core import CullBinManager
+
+    bins = CullBinManager.get_global_ptr()
+    if bins.find_bin(DRAW_BIN) < 0:
+        bins.add_bin(DRAW_BIN, CullBinManager.BT_unsorted, bins.get_bin_sort(
+            bins.find_bin("opaque")))
+    return DRAW_BIN
+
+
 def texture_rgb(texture) -> np.ndarray:
     """The RGB image (H, W, 3) uint8 of a render texture, top row first, C-contiguous."""
     import cv2
@@ -232,6 +252,7 @@ class Scene:
         self._baked: list[BakedGeom] = []
         try:
             self.root = NodePath("scene")
+            self.root.set_bin(_draw_bin(), 0)  # geometry in a fixed bin (sky, hood) keeps it
             self.static = self.root.attach_new_node("static")
             self.follow = self.root.attach_new_node("follow-car")  # sky and fog: position only
             self.car = self.root.attach_new_node("car")

@@ -19,6 +19,10 @@ is extra work beside the loop, not part of it.
 - ``loop_ratio_steady``: the same 8 cars stepped by the episode runner once their simulators are
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 
+In one process, as here, evaluate runs the network for half the cars on a second thread while
+the other half renders (``Runner(overlap=True)``, one PyTorch thread): the loop uses two cores,
+the render-only reference one (Panda3D's software renderer draws on one thread).
+
 Run: python benchmarks/evaluate.py [MODEL.keras]   (default: an untrained `fast` network; the
 weights do not change the cost, only where the car goes)
 """
@@ -58,6 +62,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
+    from clonedrive.keras_backend import compute_threads
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     speeds = [20.0 + 0.5 * i for i in range(batch)]
@@ -66,7 +71,8 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
         episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed, max_seconds=seconds),
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,
                                                                          strict=True)]
-        runner = Runner(episodes, NetworkDriver(policy, speeds))
+        # As evaluate drives a group in its own process: the network on a second thread.
+        runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=True)
         runner.reset()
         steps = 0
 
@@ -74,9 +80,10 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
             nonlocal steps
             steps += 1
 
-        start = time.perf_counter()
-        runner.run(count)
-        return steps / (time.perf_counter() - start)
+        with compute_threads(1):
+            start = time.perf_counter()
+            runner.run(count)
+            return steps / (time.perf_counter() - start)
     finally:
         for sim in sims:
             sim.close()

@@ -202,6 +202,59 @@ def test_lock_step_drives_every_active_car_per_call_and_matches_driving_alone():
     assert together == alone  # bit for bit: the runner adds nothing of its own
 
 
+class Threaded(Recording):
+    """A :class:`Recording` that also notes the thread each call ran on."""
+
+    def __init__(self, keepers) -> None:
+        self.keepers = keepers
+        self.calls = []
+        self.threads: list[str] = []
+
+    def act(self, cars, observations):
+        import threading
+
+        self.threads.append(threading.current_thread().name)
+        return super().act(cars, observations)
+
+
+def test_overlap_decides_for_half_the_cars_on_a_helper_thread_and_drives_the_same():
+    # Four cars: two swerve off the road now and then (interventions), and they stop at
+    # different times, so the halves shrink and one empties before the end.
+    limits = (3.0, 2.0, 4.0, 1.0)
+    kinds = (Swerver, LaneKeeper, Swerver, LaneKeeper)
+
+    def run(overlap: bool):
+        sims = [Simulator("gen:3", STATE_ONLY) for _ in limits]
+        try:
+            episodes = [Episode(sim, EpisodeRules(set_speed_mph=20.0, max_seconds=limit))
+                        for sim, limit in zip(sims, limits, strict=True)]
+            driver = Threaded([kind(20.0, period_s=1.5) if kind is Swerver else kind(20.0)
+                               for kind in kinds])
+            labeller = Recording([20.0] * 4)
+            steps = []
+            Runner(episodes, driver, labeller=labeller, overlap=overlap).run(steps.append)
+            return ([episode.trace.summary() for episode in episodes], driver, steps,
+                    [episode.interventions for episode in episodes])
+        finally:
+            for sim in sims:
+                sim.close()
+
+    plain, plain_driver, plain_steps, plain_interventions = run(False)
+    overlapped, driver, steps, interventions = run(True)
+    assert overlapped == plain  # every car drove exactly as without overlap
+    assert interventions == plain_interventions and interventions[0] > 0 and interventions[2] > 0
+    assert [(s.car, s.seen.time_s, s.decision, s.label.controls) for s in steps] == \
+        [(s.car, s.seen.time_s, s.decision, s.label.controls) for s in plain_steps]
+    assert [keeper.interventions for keeper in driver.keepers] == \
+        [keeper.interventions for keeper in plain_driver.keepers]
+    # Each call decides for one half (even or odd cars); the odd half on the helper thread.
+    assert all(len({car % 2 for car in call}) == 1 for call in driver.calls)
+    helper = [thread for call, thread in zip(driver.calls, driver.threads, strict=True)
+              if call[0] % 2 == 1]
+    assert helper and all(name.startswith("runner-decide") for name in helper)
+    assert set(plain_driver.threads) == {"MainThread"}
+
+
 class Labeller:
     """Labels every step with a hard left turn and its own count."""
 

@@ -36,11 +36,20 @@ The order of one car's step is fixed: the driver (and labeller) decide from the 
 observation -> the simulator steps -> the step is traced -> each off-road event is traced and,
 under ``off_road="intervene"``, answered by an intervention (the drivers are told, e.g. to reset a
 speed controller) -> the stop rules are checked.
+
+``Runner(..., overlap=True)`` keeps that order for every car but uses a second core: the cars
+are split into two fixed halves (even and odd numbers), and while one half's simulators step
+and render on the calling thread, a helper thread asks the driver (and labeller) for the other
+half's decisions (a network's batched prediction). Rendering and PyTorch both release Python's
+lock, so the two run at once. Each car sees the same observations and decisions as without
+overlap; only the network's batches are halves. A driver used so must allow ``act`` for some
+cars while ``reset``/``intervened`` run for others (``NetworkDriver`` and ``PerCar`` do).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Protocol
 
@@ -261,13 +270,18 @@ class Runner:
     active car (and one ``labeller.act`` call, if given), then one step of each."""
 
     def __init__(self, episodes: Sequence[Episode], driver: Driver, *,
-                 labeller: Driver | None = None) -> None:
+                 labeller: Driver | None = None, overlap: bool = False) -> None:
         if not episodes:
             raise ValueError("a runner needs at least one episode")
         self.episodes = list(episodes)
         self.driver = driver
         self.labeller = labeller
+        #: Decide for one half of the cars on a helper thread while the other half steps.
+        self.overlap = bool(overlap)
         self._started = False
+        self._pool: ThreadPoolExecutor | None = None
+        #: Decisions being made ahead for these cars (overlap): cars, future of their answers.
+        self._pending: tuple[list[int], Future] | None = None
 
     @property
     def active(self) -> list[int]:
@@ -276,6 +290,7 @@ class Runner:
 
     def reset(self) -> list[SimObservation]:
         """Start every episode, then tell the driver (and labeller) each car starts."""
+        self._drop_pending()
         observations = [episode.reset() for episode in self.episodes]
         for car in range(len(self.episodes)):
             self.driver.reset(car)
@@ -291,30 +306,79 @@ class Runner:
             self.reset()
         cars = self.active
         if not cars:
+            self._drop_pending()
             return []
+        first = [car for car in cars if car % 2 == 0]
+        second = [car for car in cars if car % 2 == 1]
+        if not (self.overlap and first and second):
+            decided = self._take_pending(cars)
+            decided.update(self._decide([car for car in cars if car not in decided]))
+            return [self._step_car(car, *decided[car]) for car in cars]
+        decided = self._take_pending(first)
+        decided.update(self._decide([car for car in first if car not in decided]))
+        pool = self._pool or ThreadPoolExecutor(1, thread_name_prefix="runner-decide")
+        self._pool = pool
+        ahead = pool.submit(self._decide, second)
+        try:
+            steps = [self._step_car(car, *decided[car]) for car in first]
+        finally:
+            decided = ahead.result()  # never leave the helper deciding unseen
+        still = [car for car in first if not self.episodes[car].done]
+        if still:  # the first half's next decisions, made while the second half steps
+            self._pending = (still, pool.submit(self._decide, still))
+        steps += [self._step_car(car, *decided[car]) for car in second]
+        return sorted(steps, key=lambda step: step.car)
+
+    def _decide(self, cars: list[int]) -> dict[int, tuple[Decision, Decision | None]]:
+        """The driver's (and labeller's) decisions for ``cars``, from their observations."""
+        if not cars:
+            return {}
         seen = [self.episodes[car].observation for car in cars]
         decisions = _answers(self.driver.act(cars, seen), cars, "driver")
         labels: list[Decision | None] = [None] * len(cars)
         if self.labeller is not None:
             labels = _answers(self.labeller.act(cars, seen), cars, "labeller")
-        steps = []
-        for car, decision, label in zip(cars, decisions, labels, strict=True):
-            episode = self.episodes[car]
-            step = episode.step(decision, label)
-            if step.intervened:
-                self.driver.intervened(car, episode.observation)
-                if self.labeller is not None:
-                    self.labeller.intervened(car, episode.observation)
-            steps.append(replace(step, car=car))
-        return steps
+        return {car: (decision, label)
+                for car, decision, label in zip(cars, decisions, labels, strict=True)}
+
+    def _step_car(self, car: int, decision: Decision, label: Decision | None) -> Step:
+        episode = self.episodes[car]
+        step = episode.step(decision, label)
+        if step.intervened:
+            self.driver.intervened(car, episode.observation)
+            if self.labeller is not None:
+                self.labeller.intervened(car, episode.observation)
+        return replace(step, car=car)
+
+    def _take_pending(self, cars: list[int]) -> dict[int, tuple[Decision, Decision | None]]:
+        """The decisions made ahead for any of ``cars`` (waiting for them); the others are
+        not decided yet. Decisions made ahead for a car that has stopped since are dropped."""
+        if self._pending is None:
+            return {}
+        _, future = self._pending
+        self._pending = None
+        answers = future.result()
+        return {car: answers[car] for car in cars if car in answers}
+
+    def _drop_pending(self) -> None:
+        """Wait for any decisions being made ahead, forget them, and stop the helper."""
+        if self._pending is not None:
+            self._pending[1].result()
+            self._pending = None
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def steps(self) -> Iterator[Step]:
         """Every step of every car until all episodes have stopped."""
-        while True:
-            steps = self.step()
-            if not steps:
-                return
-            yield from steps
+        try:
+            while True:
+                steps = self.step()
+                if not steps:
+                    return
+                yield from steps
+        finally:
+            self._drop_pending()
 
     def run(self, on_step: Callable[[Step], None] | None = None) -> list[Episode]:
         """Drive until every episode has stopped; ``on_step`` sees each step as it is taken.

@@ -101,7 +101,9 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     ``trust`` and ``runtime``), each part's runs are cut into groups before anything drives
     (at most ``batch`` runs, and no more groups than workers need), and each group is driven in
     lock-step in a fresh worker process that loads the model itself; the groups start longest
-    first. The results do not depend on that order.
+    first. The results do not depend on that order. Driven in this process instead (one worker,
+    or an in-memory model) and without video, a group's network runs on a second thread beside
+    the rendering (``Runner(overlap=True)``), in two half-size batches.
     """
     from clonedrive.config import config_to_dict
     from clonedrive.keras_backend import compute_threads
@@ -173,9 +175,15 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
         if workers == 1 or len(groups) == 1:
             # With video, half the cores go to the encoder (ffmpeg) and the HUD; measured on 2
             # cores: 0.93 of the steps/s without video, against 0.51-0.74 with PyTorch on both.
-            with compute_threads(max(1, default_workers() // 2) if any(filmed) else None):
+            # Without video, a group of two or more cars overlaps its network with rendering
+            # (Runner's overlap): the network decides for one half of the cars on a second
+            # thread, with one PyTorch thread, while the other half renders on this one.
+            overlap = default_workers() > 1 and not any(filmed)
+            threads = 1 if overlap else (max(1, default_workers() // 2) if any(filmed) else None)
+            with compute_threads(threads):
                 for part, group in groups:
-                    _drive_group(policy, group, names, part, out, bar, publish)
+                    _drive_group(policy, group, names, part, out, bar, publish,
+                                 overlap=overlap and not part.video_saliency)
         else:
             # Longest first, so that the last group to start is a short one.
             order = sorted(range(len(groups)), key=lambda i: -cost[i])
@@ -254,7 +262,9 @@ def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Pat
 
 
 def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
-                 config: EvalConfig, out: Path, bar, publish) -> None:
+                 config: EvalConfig, out: Path, bar, publish, *, overlap: bool = False) -> None:
+    """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
+    cars on a second thread while the other half renders (:class:`Runner`)."""
     from clonedrive.episode.drivers import NetworkDriver
 
     runs: list[_Run] = []
@@ -268,7 +278,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
             for run in runs:
                 run.saliency = saliency
         driver = NetworkDriver(policy, [run.spec.speed_mph for run in runs])
-        runner = Runner([run.episode for run in runs], driver)
+        runner = Runner([run.episode for run in runs], driver, overlap=overlap)
         runner.reset()
         for run in runs:
             run.episode.trace.unseen = run.spec.unseen

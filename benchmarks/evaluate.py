@@ -18,6 +18,8 @@ is extra work beside the loop, not part of it.
 - ``loop_ratio_onnx``: ``loop_ratio`` with the network run by ONNX Runtime.
 - ``loop_ratio_steady``: the same 8 cars stepped by the episode runner once their simulators are
   built (no scene builds, no map plots) / rendering frames once the scene is built.
+- ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
+  pairs of 10 s runs, one PyTorch thread in both).
 
 In one process, as here, evaluate runs the network for half the cars on a second thread while
 the other half renders (``Runner(overlap=True)``, one PyTorch thread): the loop uses two cores,
@@ -56,7 +58,8 @@ def closed_loop_steps_per_s(policy, batch: int, seconds: float, *,
     return steps / wall, steps
 
 
-def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
+def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
+                            overlap: bool = True) -> float:
     """Closed-loop steps/s of ``batch`` cars in lock-step once built: the runner's stepping
     alone (render, predict, control, physics, rules), without scene builds or map plots."""
     from clonedrive.episode.drivers import NetworkDriver
@@ -72,7 +75,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float) -> float:
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,
                                                                          strict=True)]
         # As evaluate drives a group in its own process: the network on a second thread.
-        runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=True)
+        runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=overlap)
         runner.reset()
         steps = 0
 
@@ -134,6 +137,10 @@ def main() -> None:
     # Steady state: the loop once its 8 simulators are built, against rendering once built.
     steady = steady_loop_steps_per_s(policy, 8, 20.0)
     render_steady = render_only_steps_per_s(batched_steps, steady=True)
+    # What the overlap gains: the same steady loop without and with it, alternately.
+    pairs = [(steady_loop_steps_per_s(policy, 8, 10.0, overlap=False),
+              steady_loop_steps_per_s(policy, 8, 10.0, overlap=True)) for _ in range(3)]
+    overlap_speedup = statistics.median(with_ / without for without, with_ in pairs)
     with_video, _ = closed_loop_steps_per_s(policy, 1, 40.0, video=True)
     loop_ratio = batched / render_only
     video_ratio = with_video / single
@@ -149,6 +156,9 @@ def main() -> None:
     print(f"  steady state (built simulators, no maps): {steady:7.1f} steps/s against "
           f"{render_steady:7.1f} frames/s rendering -> loop_ratio_steady "
           f"{steady / render_steady:.2f}")
+    print("  the same without / with the network on a second thread, alternately: "
+          + ", ".join(f"{without:.0f} / {with_:.0f}" for without, with_ in pairs)
+          + f" steps/s -> overlap_speedup {overlap_speedup:.2f} (median)")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -175,6 +185,7 @@ def main() -> None:
     print(json.dumps({"loop_ratio": round(loop_ratio, 3),
                       "loop_ratio_onnx": round(batched_onnx / render_only, 3),
                       "loop_ratio_steady": round(steady / render_steady, 3),
+                      "overlap_speedup": round(overlap_speedup, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),
                       "steps_per_s_video": round(with_video, 1),

@@ -280,8 +280,8 @@ class Runner:
         self.overlap = bool(overlap)
         self._started = False
         self._pool: ThreadPoolExecutor | None = None
-        #: Decisions being made ahead for these cars (overlap): cars, future of their answers.
-        self._pending: tuple[list[int], Future] | None = None
+        #: Decisions being made ahead (overlap): a future of ``{car: (decision, label)}``.
+        self._pending: Future | None = None
 
     @property
     def active(self) -> list[int]:
@@ -325,7 +325,7 @@ class Runner:
             decided = ahead.result()  # never leave the helper deciding unseen
         still = [car for car in first if not self.episodes[car].done]
         if still:  # the first half's next decisions, made while the second half steps
-            self._pending = (still, pool.submit(self._decide, still))
+            self._pending = pool.submit(self._decide, still)
         steps += [self._step_car(car, *decided[car]) for car in second]
         return sorted(steps, key=lambda step: step.car)
 
@@ -355,15 +355,14 @@ class Runner:
         not decided yet. Decisions made ahead for a car that has stopped since are dropped."""
         if self._pending is None:
             return {}
-        _, future = self._pending
-        self._pending = None
+        future, self._pending = self._pending, None
         answers = future.result()
         return {car: answers[car] for car in cars if car in answers}
 
     def _drop_pending(self) -> None:
         """Wait for any decisions being made ahead, forget them, and stop the helper."""
         if self._pending is not None:
-            self._pending[1].result()
+            self._pending.result()
             self._pending = None
         if self._pool is not None:
             self._pool.shutdown(wait=True)

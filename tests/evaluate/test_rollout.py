@@ -7,7 +7,13 @@ import pytest
 from clonedrive.drivers.network import NetworkPolicy
 from clonedrive.drivers.tiny_model import build_tiny_model
 from clonedrive.episode.trace import autonomy_pct, smoothness
-from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table, run_specs
+from clonedrive.evaluate.rollout import (
+    EvalConfig,
+    evaluate,
+    format_table,
+    hud_frame,
+    run_specs,
+)
 
 LAKE_JSON = resources.files("clonedrive.world") / "tracks" / "lake.json"
 
@@ -19,6 +25,20 @@ def test_autonomy_and_smoothness_follow_their_definitions():
     # Alternating +-0.1 at 15 Hz: each change is 0.2 -> 3.0 per second.
     assert smoothness(np.array([0.1, -0.1] * 10), 15.0) == pytest.approx(3.0)
     assert smoothness(np.full(10, 0.3), 15.0) == 0.0
+
+
+def test_hud_frame_enlarges_the_camera_and_darkens_a_band_behind_its_text():
+    image = np.random.default_rng(3).integers(0, 256, (160, 320, 3), dtype=np.uint8)
+    frame = hud_frame(image, steering=-0.3, speed_mph=21.5, cte_m=0.4, lap=0, laps=2,
+                      interventions=1)
+    enlarged = image.repeat(2, axis=0).repeat(2, axis=1)
+    assert frame.shape == (320, 640, 3)
+    assert np.array_equal(frame[59:], enlarged[59:])  # below the band: the camera, 2x
+    # The band's rows 0-58 at 45 % (OpenCV's rounding: within 1), where no text or bar is
+    # drawn (the right edge); the text and the bar differ from that.
+    darkened = enlarged[:59].astype(float) * 0.45
+    assert np.abs(frame[:59, 600:] - darkened[:, 600:]).max() <= 1.0
+    assert np.abs(frame[:59, :560] - darkened[:, :560]).max() > 100
 
 
 def test_unseen_tracks_use_seeds_disjoint_from_recording():

@@ -99,6 +99,9 @@ def test_video_writer_appends_frames(tmp_path: Path) -> None:
     assert writer.frames_written == 5
     meta, frames = decode_video(path)
     assert meta["size"] == (64, 48) and len(frames) == 5
+    # Even sizes are piped to ffmpeg as YUV 4:2:0: colours come back as they went in (RGB).
+    for index, frame in enumerate(frames):
+        assert np.abs(frame[8:40, 8:56].astype(int) - colour_frame(index)[0, 0]).max() < 12
 
 
 def test_video_writer_odd_size_and_abort(tmp_path: Path) -> None:
@@ -108,6 +111,8 @@ def test_video_writer_odd_size_and_abort(tmp_path: Path) -> None:
             writer.append(colour_frame(index, 33, 21))
     meta, frames = decode_video(path)
     assert meta["size"] == (34, 22) and len(frames) == 3
+    for index, frame in enumerate(frames):  # piped as RGB, scaled by ffmpeg
+        assert np.abs(frame[6:16, 6:28].astype(int) - colour_frame(index)[0, 0]).max() < 12
     aborted = tmp_path / "aborted.mp4"
     with pytest.raises(RuntimeError), VideoWriter(aborted) as writer:
         writer.append(colour_frame(0))

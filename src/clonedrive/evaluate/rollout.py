@@ -67,9 +67,9 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
 
     frame = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
     height, width = frame.shape[:2]
-    overlay = frame.copy()
-    cv2.rectangle(overlay, (0, 0), (width, 58), (0, 0, 0), -1)
-    frame = cv2.addWeighted(overlay, 0.55, frame, 0.45, 0)
+    # A black band (rows 0-58) at 55 % opacity behind the text: only its rows are darkened (a
+    # whole-frame blend with a black overlay gives the same pixels at several times the cost).
+    frame[:59] = cv2.convertScaleAbs(frame[:59], alpha=0.45)
     text = (f"steer {steering:+.2f}  {speed_mph:4.1f} mph  CTE {cte_m:+.2f} m  "
             f"lap {min(lap + 1, laps)}/{laps}  int. {interventions}")
     cv2.putText(frame, text, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.62, (255, 255, 255), 2,

@@ -1,8 +1,19 @@
 """Top-down track maps (matplotlib, Agg): the road, its direction, the start line, elevation by
-colour, and optionally a driven path coloured by |CTE| with off-road points marked."""
+colour, and optionally a driven path coloured by |CTE| with off-road points marked.
+
+Evaluation draws one map per run, and most of a map's cost is the track's part (road, axes,
+ticks, colour bar), the same for every run on that track. So maps with a driven path reuse it:
+the track's figure is drawn once per process (:data:`_BACKGROUNDS`, the last few tracks), its
+pixels are kept, and each run restores them and draws only its own path, markers and title on
+top (matplotlib's blitting). A path that leaves the track's axes falls back to a full drawing,
+so nothing is cut off. Measured on lake and mountain (900-point paths, a training running
+beside): 0.22-0.28 s a map drawn whole, 0.03-0.05 s reusing the track's.
+"""
 
 from __future__ import annotations
 
+import weakref
+from collections import OrderedDict
 from pathlib import Path
 
 import matplotlib
@@ -59,35 +70,140 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     ax.set_ylabel("y (north) [m]")
 
 
+#: Tracks whose drawn map (figure and pixels) is kept for their next runs, newest last.
+_BACKGROUNDS: OrderedDict = OrderedDict()
+_BACKGROUND_TRACKS = 4
+_FIGURE = {"figsize": (8, 7), "dpi": 110}
+_MARGINS = {"left": 0.1, "right": 0.88, "bottom": 0.07, "top": 0.95}
+
+
 def plot_track_map(track: Track, path: str | Path, *, title: str | None = None,
                    driven_xy: np.ndarray | None = None, abs_cte_m: np.ndarray | None = None,
-                   off_road_xy: np.ndarray | None = None) -> Path:
-    """Write a map PNG of ``track``; with ``driven_xy`` the path is drawn coloured by |CTE|."""
+                   off_road_xy: np.ndarray | None = None, reuse: bool = True) -> Path:
+    """Write a map PNG of ``track``; with ``driven_xy`` the path is drawn coloured by |CTE|.
+
+    ``reuse``: draw a driven path over the track's kept map (see the module); False draws the
+    whole figure (the same picture, at several times the cost)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(8, 7), dpi=110)
+    title = title or _default_title(track)
+    if reuse and driven_xy is not None and len(driven_xy) > 1:
+        background = _background(track)
+        if background.contains(driven_xy, off_road_xy):
+            background.draw_run(path, title, driven_xy, abs_cte_m, off_road_xy)
+            return path
+    fig, ax = plt.subplots(**_FIGURE)
     draw_track(ax, track, elevation=driven_xy is None)
     if driven_xy is not None and len(driven_xy) > 1:
-        segments = np.stack([driven_xy[:-1], driven_xy[1:]], axis=1)
-        colour = abs_cte_m[:-1] if abs_cte_m is not None else np.zeros(len(segments))
-        lines = LineCollection(segments, cmap="plasma", linewidths=1.8, zorder=7)
-        lines.set_array(colour)
-        lines.set_clim(0.0, max(0.5 * float(track.width.max()), 1e-3))
-        ax.add_collection(lines)
-        colorbar = fig.colorbar(lines, ax=ax, fraction=0.04, pad=0.02)
+        colorbar = fig.colorbar(_path_lines(track, driven_xy, abs_cte_m, ax), ax=ax,
+                                fraction=0.04, pad=0.02)
         colorbar.set_label("|cross-track error| [m]")
-    if off_road_xy is not None and len(off_road_xy):
-        ax.scatter(off_road_xy[:, 0], off_road_xy[:, 1], marker="x", s=80, color="red", lw=2.5,
-                   zorder=8, label="off road")
-        ax.legend(loc="upper right")
-    summary = track.summary()
-    ax.set_title(title or (
-        f"{track.name}: {summary['length_m']:.0f} m, width {summary['width_m']:.1f} m, "
-        f"elevation range {summary['elevation_range_m']:.0f} m, "
-        f"min radius {summary['min_radius_m']:.0f} m"), fontsize=10)
+    _off_road_markers(ax, off_road_xy)
+    ax.set_title(title, fontsize=10)
     # Fixed margins rather than tight_layout, which lays the ticks out once more (0.12 s a map).
-    fig.subplots_adjust(left=0.1, right=0.88, bottom=0.07, top=0.95)
+    fig.subplots_adjust(**_MARGINS)
     with atomic_path(path) as temporary:
         fig.savefig(temporary)
     plt.close(fig)
     return path
+
+
+def _default_title(track: Track) -> str:
+    summary = track.summary()
+    return (f"{track.name}: {summary['length_m']:.0f} m, width {summary['width_m']:.1f} m, "
+            f"elevation range {summary['elevation_range_m']:.0f} m, "
+            f"min radius {summary['min_radius_m']:.0f} m")
+
+
+def _path_lines(track: Track, driven_xy: np.ndarray, abs_cte_m: np.ndarray | None, ax):
+    """The driven path as a line collection coloured by |CTE| (0 to half the widest road)."""
+    segments = np.stack([driven_xy[:-1], driven_xy[1:]], axis=1)
+    colour = abs_cte_m[:-1] if abs_cte_m is not None else np.zeros(len(segments))
+    lines = LineCollection(segments, cmap="plasma", linewidths=1.8, zorder=7)
+    lines.set_array(colour)
+    lines.set_clim(*_cte_limits(track))
+    ax.add_collection(lines)
+    return lines
+
+
+def _cte_limits(track: Track) -> tuple[float, float]:
+    return 0.0, max(0.5 * float(track.width.max()), 1e-3)
+
+
+def _off_road_markers(ax, off_road_xy: np.ndarray | None) -> list:
+    """Red crosses at the off-road points, with their legend (the artists made)."""
+    if off_road_xy is None or not len(off_road_xy):
+        return []
+    points = ax.scatter(off_road_xy[:, 0], off_road_xy[:, 1], marker="x", s=80, color="red",
+                        lw=2.5, zorder=8, label="off road")
+    return [points, ax.legend(loc="upper right")]
+
+
+class _Background:
+    """A track's map drawn once with an empty title and no path: its figure and pixels."""
+
+    def __init__(self, track: Track) -> None:
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+
+        self.fig, self.ax = plt.subplots(**_FIGURE)
+        draw_track(self.ax, track, elevation=False)
+        scale = ScalarMappable(Normalize(*_cte_limits(track)), cmap="plasma")
+        colorbar = self.fig.colorbar(scale, ax=self.ax, fraction=0.04, pad=0.02)
+        colorbar.set_label("|cross-track error| [m]")
+        self.title = self.ax.set_title(" ", fontsize=10)
+        self.fig.subplots_adjust(**_MARGINS)
+        self.track = track
+        canvas = self.fig.canvas
+        canvas.draw()
+        self.ax.set_autoscale_on(False)  # a run's path must not move the kept axes
+        self.xlim, self.ylim = self.ax.get_xlim(), self.ax.get_ylim()
+        self.pixels = canvas.copy_from_bbox(self.fig.bbox)
+
+    def contains(self, *points: np.ndarray | None) -> bool:
+        """Whether every given point lies inside this map's axes (nothing would be cut off)."""
+        for xy in points:
+            if xy is None or not len(xy):
+                continue
+            if not (self.xlim[0] <= xy[:, 0].min() and xy[:, 0].max() <= self.xlim[1]
+                    and self.ylim[0] <= xy[:, 1].min() and xy[:, 1].max() <= self.ylim[1]):
+                return False
+        return True
+
+    def draw_run(self, path: Path, title: str, driven_xy: np.ndarray,
+                 abs_cte_m: np.ndarray | None, off_road_xy: np.ndarray | None) -> None:
+        """Restore the track's pixels, draw one run's path, markers and title, write the PNG."""
+        from PIL import Image
+
+        canvas, ax = self.fig.canvas, self.ax
+        canvas.restore_region(self.pixels)
+        artists = [_path_lines(self.track, driven_xy, abs_cte_m, ax),
+                   *_off_road_markers(ax, off_road_xy)]
+        self.title.set_text(title)
+        try:
+            for artist in [*artists, self.title]:
+                self.fig.draw_artist(artist)
+            rgba = np.asarray(canvas.buffer_rgba())
+            with atomic_path(path) as temporary:
+                Image.fromarray(rgba).save(temporary, format="PNG",
+                                           dpi=(self.fig.dpi, self.fig.dpi))
+        finally:
+            self.title.set_text(" ")
+            for artist in artists:
+                artist.remove()
+
+
+def _background(track: Track) -> _Background:
+    """The kept map of ``track`` (drawn now if it is not among the last few tracks')."""
+    key = id(track)
+    entry = _BACKGROUNDS.get(key)
+    if entry is not None and entry[0]() is track:
+        _BACKGROUNDS.move_to_end(key)
+        return entry[1]
+    background = _Background(track)
+    _BACKGROUNDS[key] = (weakref.ref(track), background)
+    _BACKGROUNDS.move_to_end(key)
+    while len(_BACKGROUNDS) > _BACKGROUND_TRACKS:
+        _, (_, old) = _BACKGROUNDS.popitem(last=False)
+        plt.close(old.fig)
+    return background

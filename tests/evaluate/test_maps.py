@@ -1,0 +1,60 @@
+"""Track maps: a run's path drawn over the track's kept map looks as the whole figure does."""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+from clonedrive.evaluate import maps
+from clonedrive.evaluate.maps import plot_track_map
+from clonedrive.world.catalog import load_track
+
+
+def weaving_path(track, offset_m: float, until: float = 0.6):
+    s = np.linspace(0.0, until * track.length_m, 400)
+    cte = offset_m * np.sin(s / 35.0)
+    xy = np.array([track.offset_point(v, c)[:2] for v, c in zip(s, cte, strict=True)])
+    return xy, np.abs(cte)
+
+
+def pixels(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB")).astype(int)
+
+
+def test_a_runs_map_over_the_kept_track_map_matches_the_whole_figure(tmp_path):
+    maps._BACKGROUNDS.clear()
+    track = load_track("lake")
+    first_xy, first_cte = weaving_path(track, 2.0, until=0.9)
+    second_xy, second_cte = weaving_path(track, 1.0)
+    plot_track_map(track, tmp_path / "first.png", title="first run", driven_xy=first_xy,
+                   abs_cte_m=first_cte)
+    assert len(maps._BACKGROUNDS) == 1  # the track's map is kept for its next runs
+    kwargs = {"title": "second run", "driven_xy": second_xy, "abs_cte_m": second_cte,
+              "off_road_xy": second_xy[[50, 300]]}
+    plot_track_map(track, tmp_path / "reused.png", **kwargs)
+    plot_track_map(track, tmp_path / "whole.png", reuse=False, **kwargs)
+    reused, whole = pixels(tmp_path / "reused.png"), pixels(tmp_path / "whole.png")
+    assert reused.shape == whole.shape == (770, 880, 3)
+    # The same picture: no trace of the first run's path, title, markers and legend in place
+    # (a few anti-aliased edge pixels may round differently).
+    assert (np.abs(reused - whole).max(axis=2) > 30).mean() < 1e-3
+    assert not np.array_equal(pixels(tmp_path / "first.png"), reused)
+
+
+def test_a_path_beyond_the_kept_axes_is_drawn_whole_and_the_cache_is_bounded(tmp_path):
+    maps._BACKGROUNDS.clear()
+    track = load_track("lake")
+    xy, cte = weaving_path(track, 1.0)
+    far = np.vstack([xy, xy[-1] + (600.0, 0.0)])  # far outside the track's axes
+    far_cte = np.append(cte, 600.0)
+    plot_track_map(track, tmp_path / "far.png", driven_xy=far, abs_cte_m=far_cte)
+    plot_track_map(track, tmp_path / "far_whole.png", driven_xy=far, abs_cte_m=far_cte,
+                   reuse=False)
+    assert np.array_equal(pixels(tmp_path / "far.png"), pixels(tmp_path / "far_whole.png"))
+    names = ["lake", "mountain", "gen2:easy:2002", "gen2:medium:2001", "gen2:hard:2003"]
+    tracks = [load_track(name) for name in names]
+    for index, other in enumerate(tracks):
+        path_xy, path_cte = weaving_path(other, 1.0, until=0.2)
+        plot_track_map(other, tmp_path / f"{index}.png", driven_xy=path_xy, abs_cte_m=path_cte)
+    kept = [entry[0]() for entry in maps._BACKGROUNDS.values()]
+    assert kept == tracks[-maps._BACKGROUND_TRACKS:]  # the newest few, oldest dropped

@@ -73,10 +73,10 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     train(TrainConfig(model="fast", batch_size=32, epochs=1, learning_rate=1e-3,
                       speed_head=True, export_h5=False), [data], base, progress=False)
     out = tmp_path / "dagger"
-    code = main(["dagger", str(base), "--out", str(out), "--iterations", "2", "--plain-each",
-                 "--track", "lake",
-                 "--eval-track", "lake", "--unseen", "0", "--epochs", "1", "--speed", "15",
-                 "--max-seconds", "3", "--no-scenery"])
+    arguments = ["dagger", str(base), "--out", str(out), "--iterations", "2", "--plain-each",
+                 "--track", "lake", "--eval-track", "lake", "--unseen", "0", "--epochs", "1",
+                 "--speed", "15", "--max-seconds", "3", "--no-scenery"]
+    code = main([*arguments, "--plain-noise", "0"])
     assert code == 0
     report = json.loads((out / "dagger.json").read_text())
     base_row, first, second = report["iterations"]
@@ -94,6 +94,9 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     plain = report["plain"]
     assert (early["iteration"], early["labels_total"], early["epochs"]) == (1, 45, 1)
     assert (plain["iteration"], plain["labels_total"], plain["epochs"]) == (2, 90, 2)
+    # --plain-noise 0: the expert recorded them without steering noise (textbook cloning).
+    assert report["config"]["plain_noise"] == 0.0 and early["noise"] == plain["noise"] == 0.0
+    assert json.loads((out / "plain" / "data" / "record.json").read_text())["noise"] == 0.0
     assert early["eval"]["builtin"]["runs"] == plain["eval"]["builtin"]["runs"] == 1
     assert (out / "plain_01" / "train" / "model.keras").is_file()
     assert (out / "plain" / "train" / "model.keras").is_file()
@@ -104,3 +107,6 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     table = [line.split()[:2] for line in format_table(report).splitlines()[2:]]
     assert table == [["0", "base"], ["1", "dagger"], ["2", "dagger"], ["1", "plain"],
                      ["2", "plain"]]
+    # Re-run on the same folder with another noise: the saved plain data is not reused silently.
+    assert main([*arguments, "--plain-noise", "0.15"]) == 2
+    assert "recorded with steering noise 0.0, not the 0.15" in capsys.readouterr().err

@@ -514,15 +514,19 @@ def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path
                 iteration: int, folder: Path, references: dict, *, progress: bool) -> dict:
     """Plain cloning with ``labels`` extra expert labels, trained from the base model for as
     many epochs as DAgger had trained by ``iteration``, and evaluated as the iterations are."""
-    recorded = _reuse_json(folder / "data" / "record.json") or record_plain(
-        config, labels, folder / "data")
+    recorded = _reuse_json(folder / "data" / "record.json")
+    if recorded is not None and recorded.get("noise") != config.plain_noise:
+        raise ValueError(f"{folder / 'data'}: recorded with steering noise "
+                         f"{recorded.get('noise')}, not the {config.plain_noise} asked for "
+                         "(plain_noise); use another --out, or remove that folder")
+    recorded = recorded or record_plain(config, labels, folder / "data")
     folders = [folder / "data" / item.name for item in sorted((folder / "data").iterdir())
                if (item / "driving_log.csv").is_file()]
     model = retrain(base_config, aggregate_recipe(base_recipe, folders), base_model,
                     config.epochs * iteration, config.learning_rate, folder / "train",
                     seed=config.seed, progress=progress)
     return {"method": "plain", "iteration": iteration, "labels_total": recorded["labels"],
-            "epochs": config.epochs * iteration, "model": str(model),
+            "noise": recorded["noise"], "epochs": config.epochs * iteration, "model": str(model),
             "eval": evaluate_model(model, config, folder / "eval", references,
                                    progress=progress)}
 

@@ -55,6 +55,10 @@ def add_arguments(parser) -> None:
                         help="run the plain-cloning comparison at every iteration's label "
                              "count, not only the last (a curve beside DAgger's; costs as many "
                              "more trainings)")
+    parser.add_argument("--plain-noise", type=float, default=d.plain_noise, metavar="NOISE",
+                        help="the expert's steering noise while it records the plain-cloning "
+                             "comparison's labels (the labels stay clean); 0 is textbook "
+                             "behavioural cloning, on the expert's own states only")
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap on simulated seconds per episode (quick runs)")
     parser.add_argument("--no-scenery", dest="scenery", action="store_false")
@@ -76,7 +80,7 @@ def run(args) -> int:
             eval_tracks=tuple(args.eval_track or d.eval_tracks), eval_laps=args.eval_laps,
             eval_unseen=args.unseen, bench_suite=args.suite,
             bench_splits=tuple(args.bench_split or ()), workers=args.workers, plain=args.plain,
-            plain_each=args.plain_each,
+            plain_each=args.plain_each, plain_noise=args.plain_noise,
             max_seconds=args.max_seconds,
             scenery=args.scenery, seed=args.seed)
         for name in (*config.tracks, *config.eval_tracks):

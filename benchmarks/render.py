@@ -15,6 +15,9 @@ along the road the camera is on. ``drawn_per_camera`` counts the triangles Panda
 hands the renderer in each frame (the nodes whose bounds meet a camera's frustum, within their
 LOD distance; the same count for both scenes), and ``render_ratio_drawn`` compares our scene
 against a denser bare grid that draws as many triangles per frame as ours does.
+``render_ratio_paths`` compares it against that grid with its pixels shaded as ours are
+(per-vertex colours modulating a mipmapped texture: the software renderer's slower inner loop
+that baked light and fog need); what is left is our content (overdraw, clipping, state changes).
 
 Prints figures per track (wall-clock and this process's CPU time: other work on the machine
 slows the wall clock, not the CPU figure) and ends with one JSON line:
@@ -136,8 +139,12 @@ def measure(track_name: str, steps: int, warmup: int = 20) -> dict:
     }
 
 
-def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0):
-    """A flat, textured ground of about ``triangles`` triangles in ``cell_m`` square nodes."""
+def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0, *,
+               our_pixels: bool = False):
+    """A flat, textured ground of about ``triangles`` triangles in ``cell_m`` square nodes.
+
+    ``our_pixels``: shade its pixels as ours are (per-vertex colours modulating the texture,
+    mipmapped), so the software renderer fills them through the same inner loop."""
     from panda3d.core import (
         Geom,
         GeomNode,
@@ -157,16 +164,25 @@ def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0):
     texture.setup_2d_texture(256, 256, Texture.T_unsigned_byte, Texture.F_rgb)
     checker = ((np.indices((256, 256)).sum(axis=0) // 32) % 2 * 80 + 60).astype(np.uint8)
     texture.set_ram_image(np.repeat(checker[..., None], 3, axis=2).tobytes())
+    if our_pixels:
+        from panda3d.core import SamplerState
+
+        texture.set_minfilter(SamplerState.FT_nearest_mipmap_nearest)
+        texture.generate_ram_mipmap_images()
+    vertex_format = GeomVertexFormat.get_v3c4t2() if our_pixels else GeomVertexFormat.get_v3t2()
     step = cell_m / side
     for i in range(cells):
         for j in range(cells):
-            data = GeomVertexData("cell", GeomVertexFormat.get_v3t2(), Geom.UH_static)
+            data = GeomVertexData("cell", vertex_format, Geom.UH_static)
             vertex, uv = GeomVertexWriter(data, "vertex"), GeomVertexWriter(data, "texcoord")
+            colour = GeomVertexWriter(data, "color") if our_pixels else None
             for a in range(side + 1):
                 for b in range(side + 1):
                     x, y = i * cell_m + a * step - size_m / 2, j * cell_m + b * step - size_m / 2
                     vertex.add_data3(x, y, 0.0)
                     uv.add_data2(a / 4.0, b / 4.0)
+                    if colour is not None:  # a varying tint, as baked light and haze are
+                        colour.add_data4(0.7 + 0.1 * (a % 3), 0.75, 0.7 + 0.1 * (b % 3), 1.0)
             tris = GeomTriangles(Geom.UH_static)
             for a in range(side):
                 for b in range(side):
@@ -180,14 +196,17 @@ def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0):
             root.attach_new_node(node)
     # A textured backdrop all round (our scene has its sky cylinder and hills), so that every
     # pixel of the bare frame is textured too, as ours are.
-    data = GeomVertexData("backdrop", GeomVertexFormat.get_v3t2(), Geom.UH_static)
+    data = GeomVertexData("backdrop", vertex_format, Geom.UH_static)
     vertex, uv = GeomVertexWriter(data, "vertex"), GeomVertexWriter(data, "texcoord")
+    colour = GeomVertexWriter(data, "color") if our_pixels else None
     segments, radius, height = 64, size_m / 2, 200.0
     for k in range(segments + 1):
         angle = 2 * np.pi * k / segments
         for z in (-1.0, height):
             vertex.add_data3(radius * np.cos(angle), radius * np.sin(angle), z)
             uv.add_data2(k / 4.0, z / 50.0)
+            if colour is not None:
+                colour.add_data4(0.8, 0.85, 0.9 if z > 0 else 0.7, 1.0)
     tris = GeomTriangles(Geom.UH_static)
     for k in range(segments):
         a = 2 * k
@@ -204,7 +223,7 @@ def _bare_grid(triangles: int, size_m: float = 960.0, cell_m: float = 96.0):
 
 
 def measure_bare(triangles: int, steps: int, cameras: int = 3, width: int = 320,
-                 height: int = 160, warmup: int = 20) -> dict:
+                 height: int = 160, warmup: int = 20, *, our_pixels: bool = False) -> dict:
     """The same camera loop over a bare grid scene of ``triangles`` triangles."""
     from panda3d.core import Camera, NodePath, PerspectiveLens
 
@@ -214,7 +233,7 @@ def measure_bare(triangles: int, steps: int, cameras: int = 3, width: int = 320,
     engine = RenderEngine()
     try:
         world = NodePath("world")
-        grid, made = _bare_grid(triangles)
+        grid, made = _bare_grid(triangles, our_pixels=our_pixels)
         grid.reparent_to(world)
         car = world.attach_new_node("car")
         textures = []
@@ -273,6 +292,10 @@ def main() -> None:
         denser = round(bare["triangles"] * result["drawn_per_camera"]
                        / max(bare["drawn_per_camera"], 1.0))
         bare_drawn = measure_bare(max(denser, bare["triangles"]), args.steps, result["cameras"])
+        # That grid again with its pixels shaded as ours are (vertex colours x mipmapped
+        # texture): what our scene costs beyond the triangles drawn and the pixel path chosen.
+        bare_paths = measure_bare(max(denser, bare["triangles"]), args.steps, result["cameras"],
+                                  our_pixels=True)
         # CPU time is the fairer basis: other processes on the machine slow the wall clock.
         result["bare"] = bare
         result["bare_drawn"] = bare_drawn
@@ -280,6 +303,9 @@ def main() -> None:
                                   / bare["cpu_camera_frames_per_s"])
         result["render_ratio_drawn"] = (result["cpu_camera_frames_per_s"]
                                         / bare_drawn["cpu_camera_frames_per_s"])
+        result["bare_paths"] = bare_paths
+        result["render_ratio_paths"] = (result["cpu_camera_frames_per_s"]
+                                        / bare_paths["cpu_camera_frames_per_s"])
         result["rig_ratio"] = (result["cpu_camera_frames_per_s"]
                                / result["raw_cpu_camera_frames_per_s"])
         results[name] = result
@@ -302,6 +328,11 @@ def main() -> None:
             f"render_ratio_drawn {result['render_ratio_drawn']:.2f}"
         )
         print(
+            f"{'':10s} that grid with our pixel path (vertex colours x mipmapped texture): "
+            f"{bare_paths['cpu_camera_frames_per_s']:6.1f} frames per CPU second -> "
+            f"render_ratio_paths {result['render_ratio_paths']:.2f}"
+        )
+        print(
             f"{'':10s} our scene through bare Panda3D calls: "
             f"{result['raw_cpu_camera_frames_per_s']:6.1f} camera frames per CPU second -> "
             f"our rig's own overhead ratio {result['rig_ratio']:.2f}"
@@ -312,6 +343,7 @@ def main() -> None:
         "render_ratio_per_track": {name: round(r["render_ratio"], 3)
                                    for name, r in results.items()},
         "render_ratio_drawn": round(min(r["render_ratio_drawn"] for r in results.values()), 3),
+        "render_ratio_paths": round(min(r["render_ratio_paths"] for r in results.values()), 3),
         "drawn_per_camera": {name: round(r["drawn_per_camera"]) for name, r in results.items()},
         "rig_ratio": round(min(r["rig_ratio"] for r in results.values()), 3),
         "camera_frames_per_s": round(slowest["camera_frames_per_s"], 1),

@@ -29,6 +29,7 @@ def test_a_runs_map_over_the_kept_track_map_matches_the_whole_figure(tmp_path):
     plot_track_map(track, tmp_path / "first.png", title="first run", driven_xy=first_xy,
                    abs_cte_m=first_cte)
     assert len(maps._BACKGROUNDS) == 1  # the track's map is kept for its next runs
+    track = load_track("lake")  # another simulator's copy of the same track: the same map
     kwargs = {"title": "second run", "driven_xy": second_xy, "abs_cte_m": second_cte,
               "off_road_xy": second_xy[[50, 300]]}
     plot_track_map(track, tmp_path / "reused.png", **kwargs)
@@ -39,6 +40,7 @@ def test_a_runs_map_over_the_kept_track_map_matches_the_whole_figure(tmp_path):
     # (a few anti-aliased edge pixels may round differently).
     assert (np.abs(reused - whole).max(axis=2) > 30).mean() < 1e-3
     assert not np.array_equal(pixels(tmp_path / "first.png"), reused)
+    assert len(maps._BACKGROUNDS) == 1
 
 
 def test_a_path_beyond_the_kept_axes_is_drawn_whole_and_the_cache_is_bounded(tmp_path):
@@ -56,5 +58,5 @@ def test_a_path_beyond_the_kept_axes_is_drawn_whole_and_the_cache_is_bounded(tmp
     for index, other in enumerate(tracks):
         path_xy, path_cte = weaving_path(other, 1.0, until=0.2)
         plot_track_map(other, tmp_path / f"{index}.png", driven_xy=path_xy, abs_cte_m=path_cte)
-    kept = [entry[0]() for entry in maps._BACKGROUNDS.values()]
-    assert kept == tracks[-maps._BACKGROUND_TRACKS:]  # the newest few, oldest dropped
+    kept = [background.track.name for background in maps._BACKGROUNDS.values()]
+    assert kept == names[-maps._BACKGROUND_TRACKS:]  # the newest few, the oldest dropped

@@ -12,7 +12,7 @@ beside): 0.22-0.28 s a map drawn whole, 0.03-0.05 s reusing the track's.
 
 from __future__ import annotations
 
-import weakref
+import hashlib
 from collections import OrderedDict
 from pathlib import Path
 
@@ -70,7 +70,7 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     ax.set_ylabel("y (north) [m]")
 
 
-#: Tracks whose drawn map (figure and pixels) is kept for their next runs, newest last.
+#: The drawn maps (figure and pixels) kept for their tracks' next runs, newest last.
 _BACKGROUNDS: OrderedDict = OrderedDict()
 _BACKGROUND_TRACKS = 4
 _FIGURE = {"figsize": (8, 7), "dpi": 110}
@@ -194,16 +194,23 @@ class _Background:
 
 
 def _background(track: Track) -> _Background:
-    """The kept map of ``track`` (drawn now if it is not among the last few tracks')."""
-    key = id(track)
-    entry = _BACKGROUNDS.get(key)
-    if entry is not None and entry[0]() is track:
-        _BACKGROUNDS.move_to_end(key)
-        return entry[1]
-    background = _Background(track)
-    _BACKGROUNDS[key] = (weakref.ref(track), background)
+    """The kept map of ``track`` (drawn now if it is not among the last few tracks').
+
+    Kept by the track's content (name, centreline, widths), not by the object: each simulator
+    loads its own copy of a track."""
+    key = _track_key(track)
+    background = _BACKGROUNDS.get(key)
+    if background is None:
+        background = _BACKGROUNDS[key] = _Background(track)
     _BACKGROUNDS.move_to_end(key)
     while len(_BACKGROUNDS) > _BACKGROUND_TRACKS:
-        _, (_, old) = _BACKGROUNDS.popitem(last=False)
+        _, old = _BACKGROUNDS.popitem(last=False)
         plt.close(old.fig)
     return background
+
+
+def _track_key(track: Track) -> tuple:
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (track.xyz, track.width, track.right_normal):
+        digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
+    return track.name, digest.hexdigest()

@@ -19,6 +19,10 @@ is extra work beside the loop, not part of it.
 Both are the median of 3 alternating pairs (the figure, then its reference), as the machine's
 speed drifts within a run.
 - ``loop_ratio_onnx``: ``loop_ratio`` with the network run by ONNX Runtime.
+- ``loop_ratio_workers``: as users run ``clonedrive evaluate MODEL``: 8 runs of 60 s from a
+  model file, their groups driven in worker processes (one per core, each loading the model)
+  / the render-only reference in as many processes at once; both include their processes'
+  start, imports and scene builds.
 - ``loop_ratio_steady``: the same 8 cars stepped by the episode runner once their simulators are
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 - ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
@@ -95,6 +99,43 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
             sim.close()
 
 
+def workers_loop_steps_per_s(model_path: str, batch: int, seconds: float,
+                             workers: int) -> tuple[float, int]:
+    """``clonedrive evaluate MODEL`` as a user runs it: the runs cut into groups driven in
+    ``workers`` worker processes that load the model themselves (process start, imports and
+    scene builds included, as in every evaluation)."""
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
+
+    speeds = tuple(20.0 + 0.5 * i for i in range(batch))
+    config = EvalConfig(tracks=("lake",), speeds_mph=speeds, laps=1, batch=batch,
+                        max_seconds=seconds, video=False, expert_reference=False,
+                        workers=workers)
+    policy = load_policy(model_path)
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        report = evaluate(policy, config, out, progress=False, model_path=model_path)
+        wall = time.perf_counter() - start
+    steps = sum(round(run["elapsed_s"] * 15) for run in report["runs"])
+    return steps / wall, steps
+
+
+def _render_only_task(steps: int) -> int:
+    render_only_steps_per_s(steps)
+    return steps
+
+
+def render_only_workers_steps_per_s(steps: int, workers: int) -> float:
+    """The reference on as many cores: ``workers`` processes rendering the center camera at
+    once, ``steps`` in all (process start, imports and scene builds included)."""
+    from clonedrive.workers import run_tasks
+
+    share = [steps // workers + (1 if i < steps % workers else 0) for i in range(workers)]
+    start = time.perf_counter()
+    run_tasks(_render_only_task, share, workers=workers)
+    return steps / (time.perf_counter() - start)
+
+
 def render_only_steps_per_s(steps: int, track_name: str = "lake", *,
                             steady: bool = False) -> float:
     """The reference: the center camera alone, built and rendered along the centreline."""
@@ -134,6 +175,7 @@ def main() -> None:
     from clonedrive.drivers.network import NetworkPolicy, load_model
     from clonedrive.model.architectures import build_model
     from clonedrive.udacity_spec import IMAGE_SHAPE
+    from clonedrive.workers import default_workers
 
     model = load_model(sys.argv[1]) if len(sys.argv) > 1 else build_model("fast")
     policy = NetworkPolicy(model, set_speed_mph=20.0)
@@ -149,6 +191,19 @@ def main() -> None:
         video_pairs.append((closed_loop_steps_per_s(policy, 1, 40.0, video=True)[0], single))
     batched, render_only = _median_pair(loop_pairs)
     with_video, single = _median_pair(video_pairs)
+    # As users run it: a model file, its groups on every core in worker processes, against the
+    # reference on as many cores.
+    workers = default_workers()
+    with tempfile.TemporaryDirectory() as folder:
+        model_file = sys.argv[1] if len(sys.argv) > 1 else str(Path(folder) / "fast.keras")
+        if len(sys.argv) <= 1:
+            model.save(model_file)
+        workers_pairs = []
+        for _ in range(PAIRS):
+            on_workers, workers_steps = workers_loop_steps_per_s(model_file, 8, 60.0, workers)
+            workers_pairs.append((on_workers,
+                                  render_only_workers_steps_per_s(workers_steps, workers)))
+    on_workers, render_workers = _median_pair(workers_pairs)
     # The same loop with the network run by ONNX Runtime (evaluate --runtime onnx).
     from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
 
@@ -176,6 +231,10 @@ def main() -> None:
           f"{listed(video_pairs)} steps/s; the median pair's ratio of {PAIRS} is reported")
     print(f"  render only:      {render_only:7.1f} steps/s (center camera, same track) -> "
           f"loop_ratio {loop_ratio:.2f} (target >= 0.8)")
+    print(f"  8 runs of 60 s on {workers} worker processes (a model file, as `clonedrive "
+          f"evaluate` runs it): {on_workers:7.1f} steps/s against {render_workers:7.1f} "
+          f"rendering on as many processes -> loop_ratio_workers "
+          f"{on_workers / render_workers:.2f} (pairs: {listed(workers_pairs)})")
     print(f"  8 runs, ONNX Runtime: {batched_onnx:7.1f} steps/s -> loop_ratio_onnx "
           f"{batched_onnx / render_only:.2f}")
     print(f"  steady state (built simulators, no maps): {steady:7.1f} steps/s against "
@@ -210,6 +269,8 @@ def main() -> None:
     print(json.dumps({"loop_ratio": round(loop_ratio, 3),
                       "loop_ratio_onnx": round(batched_onnx / render_only, 3),
                       "loop_ratio_steady": round(steady / render_steady, 3),
+                      "loop_ratio_workers": round(on_workers / render_workers, 3),
+                      "steps_per_s_workers": round(on_workers, 1),
                       "overlap_speedup": round(overlap_speedup, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),

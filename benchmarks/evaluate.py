@@ -15,9 +15,6 @@ is extra work beside the loop, not part of it.
   camera on the same track (scene built, one frame rendered and read back per step, nothing
   else): everything but rendering is overhead. Target >= 0.8.
 - ``video_ratio``: closed-loop steps/s of one run with ``--video`` / without. Target >= 0.8.
-
-Both are the median of 3 alternating pairs (the figure, then its reference), as the machine's
-speed drifts within a run.
 - ``loop_ratio_onnx``: ``loop_ratio`` with the network run by ONNX Runtime.
 - ``loop_ratio_workers``: as users run ``clonedrive evaluate MODEL``: 8 runs of 60 s from a
   model file, their groups driven in worker processes (one per core, each loading the model)
@@ -27,6 +24,9 @@ speed drifts within a run.
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 - ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
   pairs of 10 s runs, one PyTorch thread in both).
+
+``loop_ratio``, ``video_ratio`` and ``loop_ratio_workers`` are each the median of 3 alternating
+pairs (the figure, then its reference), as the machine's speed drifts within a run.
 
 In one process, as here, evaluate runs the network for half the cars on a second thread while
 the other half renders (``Runner(overlap=True)``, one PyTorch thread): the loop uses two cores,
@@ -169,6 +169,10 @@ def _median_pair(pairs: list[tuple[float, float]]) -> tuple[float, float]:
     return ranked[len(ranked) // 2]
 
 
+def _listed(pairs: list[tuple[float, float]]) -> str:
+    return ", ".join(f"{a:.0f} / {b:.0f}" for a, b in pairs)
+
+
 def main() -> None:
     import numpy as np
 
@@ -195,8 +199,10 @@ def main() -> None:
     # reference on as many cores.
     workers = default_workers()
     with tempfile.TemporaryDirectory() as folder:
-        model_file = sys.argv[1] if len(sys.argv) > 1 else str(Path(folder) / "fast.keras")
-        if len(sys.argv) <= 1:
+        if len(sys.argv) > 1:
+            model_file = sys.argv[1]
+        else:
+            model_file = str(Path(folder) / "fast.keras")
             model.save(model_file)
         workers_pairs = []
         for _ in range(PAIRS):
@@ -224,17 +230,14 @@ def main() -> None:
     print(f"  1 run, --video:   {with_video:7.1f} steps/s -> video_ratio {video_ratio:.2f} "
           "(target >= 0.8)")
     print(f"  8 runs lock-step: {batched:7.1f} steps/s ({batched_steps} steps)")
-    def listed(pairs) -> str:
-        return ", ".join(f"{a:.0f} / {b:.0f}" for a, b in pairs)
-
-    print(f"  pairs (8 runs / render only): {listed(loop_pairs)}; (--video / without): "
-          f"{listed(video_pairs)} steps/s; the median pair's ratio of {PAIRS} is reported")
+    print(f"  pairs (8 runs / render only): {_listed(loop_pairs)}; (--video / without): "
+          f"{_listed(video_pairs)} steps/s; the median pair's ratio of {PAIRS} is reported")
     print(f"  render only:      {render_only:7.1f} steps/s (center camera, same track) -> "
           f"loop_ratio {loop_ratio:.2f} (target >= 0.8)")
     print(f"  8 runs of 60 s on {workers} worker processes (a model file, as `clonedrive "
           f"evaluate` runs it): {on_workers:7.1f} steps/s against {render_workers:7.1f} "
           f"rendering on as many processes -> loop_ratio_workers "
-          f"{on_workers / render_workers:.2f} (pairs: {listed(workers_pairs)})")
+          f"{on_workers / render_workers:.2f} (pairs: {_listed(workers_pairs)})")
     print(f"  8 runs, ONNX Runtime: {batched_onnx:7.1f} steps/s -> loop_ratio_onnx "
           f"{batched_onnx / render_only:.2f}")
     print(f"  steady state (built simulators, no maps): {steady:7.1f} steps/s against "

@@ -291,11 +291,11 @@ def main() -> None:
         # The same grid made denser, until a frame of it draws as many triangles as ours do.
         denser = round(bare["triangles"] * result["drawn_per_camera"]
                        / max(bare["drawn_per_camera"], 1.0))
-        bare_drawn = measure_bare(max(denser, bare["triangles"]), args.steps, result["cameras"])
+        denser = max(denser, bare["triangles"])
+        bare_drawn = measure_bare(denser, args.steps, result["cameras"])
         # That grid again with its pixels shaded as ours are (vertex colours x mipmapped
         # texture): what our scene costs beyond the triangles drawn and the pixel path chosen.
-        bare_paths = measure_bare(max(denser, bare["triangles"]), args.steps, result["cameras"],
-                                  our_pixels=True)
+        bare_paths = measure_bare(denser, args.steps, result["cameras"], our_pixels=True)
         # CPU time is the fairer basis: other processes on the machine slow the wall clock.
         result["bare"] = bare
         result["bare_drawn"] = bare_drawn

@@ -55,14 +55,16 @@ def benchmark_tracks() -> list[str]:
 
 
 def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -> np.ndarray:
-    """A first-order low-pass run forward, then backward over the result (no delay)."""
-    alpha = (1.0 / hz) / (time_constant_s + 1.0 / hz)
-    out = np.asarray(values, dtype=float).copy()
-    for order in (range(1, len(out)), range(len(out) - 2, -1, -1)):
-        step = 1 if order.step == 1 else -1
-        for i in order:
-            out[i] = out[i - step] + alpha * (out[i] - out[i - step])
-    return out
+    """The policy's steering low-pass (:class:`SteeringFilter`, no hold) run forward, then
+    backward over the result: the same smoothing with no delay."""
+    from clonedrive.drivers.network import SteeringFilter
+
+    def run(series: np.ndarray) -> np.ndarray:
+        low_pass = SteeringFilter(time_constant_s, control_hz=hz)
+        return np.array([low_pass.update(value) for value in series])
+
+    forward = run(np.asarray(values, dtype=float))
+    return run(forward[::-1])[::-1]
 
 
 def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dict:
@@ -94,12 +96,13 @@ def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dic
     slow_label = zero_phase_low_pass(label, SLOW_TIME_CONSTANT_S, CONTROL_HZ)
     slow_prediction = zero_phase_low_pass(prediction, SLOW_TIME_CONSTANT_S, CONTROL_HZ)
     label_rate = smoothness(label, CONTROL_HZ)
+    prediction_rate = smoothness(prediction, CONTROL_HZ)
     slow_label_rate = smoothness(slow_label, CONTROL_HZ)
     return {
         "frames": len(label),
         "label_rate_per_s": round(label_rate, 4),
-        "prediction_rate_per_s": round(smoothness(prediction, CONTROL_HZ), 4),
-        "jitter_ratio": round(smoothness(prediction, CONTROL_HZ) / label_rate, 3)
+        "prediction_rate_per_s": round(prediction_rate, 4),
+        "jitter_ratio": round(prediction_rate / label_rate, 3)
         if label_rate else None,
         "slow_ratio": round(smoothness(slow_prediction, CONTROL_HZ) / slow_label_rate, 3)
         if slow_label_rate else None,

@@ -20,7 +20,7 @@ which no driving of the road explains, and which filtering the wheel can only tr
 Ends with one JSON line: ``{"jitter_ratio": <mean over tracks>, "slow_ratio": ...,
 "residual_rms": ..., "tracks": {...}}``.
 
-    python benchmarks/jitter.py MODEL [--tracks T ...] [--max-seconds 60]
+    python benchmarks/jitter.py MODEL [--tracks T ...] [--max-seconds 60] [--mirror-average]
 """
 
 from __future__ import annotations
@@ -123,12 +123,14 @@ def main() -> int:
     parser.add_argument("--speed", type=float, default=30.0, help="set speed, mph (default 30)")
     parser.add_argument("--max-seconds", type=float, default=60.0,
                         help="simulated seconds per track at most (default 60)")
+    parser.add_argument("--mirror-average", action="store_true",
+                        help="the policy averages each frame's prediction with its mirror's")
     args = parser.parse_args()
     from tqdm import tqdm
 
     from clonedrive.drivers.network import load_policy
 
-    policy = load_policy(args.model)
+    policy = load_policy(args.model, mirror_average=args.mirror_average)
     tracks = args.tracks or benchmark_tracks()
     results = {}
     for track in tqdm(tracks, desc="jitter", unit="track"):

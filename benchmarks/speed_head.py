@@ -8,7 +8,7 @@ lap from a standing start), with a lap time <= 1.05x the expert's and a smoothne
 model is driven the same way with the hand-made curve rule (`slow_in_curves`), for comparison.
 
 Run: python benchmarks/speed_head.py MODEL [--baseline MODEL] [--steering-filter S]
-         [--steering-hold H] [--workers N] [--out DIR] [--max-seconds S]
+         [--steering-hold H] [--mirror-average] [--workers N] [--out DIR] [--max-seconds S]
 """
 
 from __future__ import annotations
@@ -46,13 +46,13 @@ def suite_at_cap(folder: Path) -> Path:
 
 
 def run_bench(model: str, suite: Path, out: Path, *, slow_in_curves: bool, workers: int | None,
-              steering_filter_s: float, steering_hold: float,
+              steering_filter_s: float, steering_hold: float, mirror_average: bool,
               max_seconds: float | None) -> dict:
     from clonedrive.bench.run import BenchConfig, bench
 
     config = BenchConfig(models=(f"model={model}",), suite=str(suite), workers=workers,
                          slow_in_curves=slow_in_curves, steering_filter_s=steering_filter_s,
-                         steering_hold=steering_hold,
+                         steering_hold=steering_hold, mirror_average=mirror_average,
                          max_seconds=max_seconds)
     report = bench(config, out, progress=True)
     model = next(iter(report["models"].values()))
@@ -109,6 +109,8 @@ def main() -> int:
     parser.add_argument("--baseline", help="a one-output model, driven with slow_in_curves")
     parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S")
     parser.add_argument("--steering-hold", type=float, default=0.0, metavar="H")
+    parser.add_argument("--mirror-average", action="store_true",
+                        help="average each frame's prediction with its mirror image's")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap each episode (a quick check of the script, not the targets)")
@@ -121,12 +123,12 @@ def main() -> int:
         figures = {"speed_head": summary(run_bench(
             args.model, suite, out / "speed_head", slow_in_curves=False, workers=args.workers,
             steering_filter_s=args.steering_filter, steering_hold=args.steering_hold,
-            max_seconds=args.max_seconds))}
+            mirror_average=args.mirror_average, max_seconds=args.max_seconds))}
         if args.baseline:
             figures["baseline_slow_in_curves"] = summary(run_bench(
                 args.baseline, suite, out / "baseline", slow_in_curves=True,
                 workers=args.workers, steering_filter_s=args.steering_filter,
-                steering_hold=args.steering_hold,
+                steering_hold=args.steering_hold, mirror_average=args.mirror_average,
                 max_seconds=args.max_seconds))
     for name, result in figures.items():
         print(f"{name}: {result['clean_runs']}/{result['runs']} clean (mountain clean: "

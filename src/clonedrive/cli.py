@@ -20,6 +20,7 @@ VERBS: list[tuple[str, str]] = [
     ("record", "record"),
     ("check", "check"),
     ("train", "train"),
+    ("ensemble", "ensemble"),
     ("drive", "drive"),
     ("autonomous", "autonomous"),
     ("evaluate", "evaluate"),

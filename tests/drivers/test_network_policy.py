@@ -213,3 +213,28 @@ def test_steering_hold_keeps_the_wheel_through_small_jitter_without_delay() -> N
     again = NetworkPolicy(constant_model(0.5), **policy.options())
     assert again.options() == policy.options()
     assert (again.steering_hold, again.steering_filter_s, again.curve_gain) == (0.02, 0.3, 2.0)
+
+
+def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction() -> None:
+    from clonedrive.model.architectures import build_model
+
+    model = build_model("fast", seed=5, speed_head=True)
+    plain = NetworkPolicy(model)
+    mirrored = NetworkPolicy(model, mirror_average=True, batch_size=3)
+    images = frames(5, 11)
+    steering, speed = plain.predict(images)
+    steering_flip, speed_flip = plain.predict(np.ascontiguousarray(images[:, :, ::-1]))
+    got_steering, got_speed = mirrored.predict(images)
+    # Steering of the mirror image is negated (the road bends the other way), speed is not.
+    np.testing.assert_allclose(got_steering, (steering - steering_flip) / 2, atol=1e-6)
+    np.testing.assert_allclose(got_speed, (speed + speed_flip) / 2, atol=1e-4)
+    assert not np.allclose(steering, steering_flip)  # the two views really differ
+    # A frame that is its own mirror image steers straight, whatever the network thinks.
+    symmetric = images[:1].copy()
+    symmetric[:, :, 160:] = symmetric[:, :, :160][:, :, ::-1]
+    assert plain.predict_steering(symmetric)[0] != pytest.approx(0.0, abs=1e-4)
+    assert mirrored.predict_steering(symmetric)[0] == pytest.approx(0.0, abs=1e-6)
+    # act() steers with the same averaged prediction; options carry the setting.
+    assert mirrored.act(images[0], 20.0)[0] == pytest.approx(float(got_steering[0]), abs=1e-6)
+    assert NetworkPolicy(model, **mirrored.options()).mirror_average is True
+    assert plain.options()["mirror_average"] is False

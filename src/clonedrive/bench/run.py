@@ -46,6 +46,7 @@ class BenchConfig:
     slow_in_curves: bool = False  #: the network's target speed falls with |steering|
     steering_filter_s: float = 0.0  #: low-pass on the predicted steering [s] (0 = off)
     steering_hold: float = 0.0  #: hold the wheel through smaller steering jitter (0 = off)
+    mirror_average: bool = False  #: average each frame's prediction with its mirror image's
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -71,7 +72,8 @@ class BenchConfig:
         """The NetworkPolicy options each model drives with (as NetworkPolicy.options() names
         them; the rest keep their defaults: drive.py's PI gains)."""
         return {"slow_in_curves": self.slow_in_curves,
-                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold}
+                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
+                "mirror_average": self.mirror_average}
 
 
 def _label_and_path(entry: str) -> tuple[str, str]:

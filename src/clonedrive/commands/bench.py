@@ -6,7 +6,7 @@ import json
 import sys
 
 from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.commands.model_options import add_model_arguments
+from clonedrive.commands.model_options import add_model_arguments, add_steering_arguments
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
@@ -44,6 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default="runs/bench", help="output folder")
     parser.add_argument("--json", action="store_true", help="print bench.json's content")
     add_model_arguments(parser)
+    add_steering_arguments(parser)
 
 
 def run(args) -> int:
@@ -56,6 +57,9 @@ def run(args) -> int:
         config = BenchConfig(models=tuple(args.models), suite=args.suite,
                              splits=tuple(args.split or ()), workers=args.workers,
                              ray=args.ray, batch=args.batch, slow_in_curves=args.slow_in_curves,
+                             steering_filter_s=args.steering_filter,
+                             steering_hold=args.steering_hold,
+                             mirror_average=args.mirror_average,
                              scenery=not args.no_scenery, max_seconds=args.max_seconds,
                              offline_data=tuple(args.offline_data or ()),
                              trust_model=args.trust_model, runtime=args.runtime)

@@ -24,8 +24,9 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_steering_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--steering-filter`` and ``--steering-hold``: what stands between the network's steering
-    and the wheel (:class:`clonedrive.drivers.network.SteeringFilter`); both off by default."""
+    """``--steering-filter``, ``--steering-hold`` and ``--mirror-average``: what stands between
+    the network and the wheel (:class:`clonedrive.drivers.network.SteeringFilter`, and the
+    policy's mirror averaging); all off by default, as drive.py."""
     parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
                              "(0.1 = the expert's hand; 0 = off, as drive.py)")
@@ -33,14 +34,21 @@ def add_steering_arguments(parser: argparse.ArgumentParser) -> None:
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
                              "delay; 0.05 measured best; 0 = off, as drive.py)")
+    parser.add_argument("--mirror-average", action="store_true",
+                        help="predict on each frame and on its mirror image and average the "
+                             "two (mirrored steering negated): cancels the part of the "
+                             "network's frame-to-frame noise the two views do not share, for "
+                             "twice the inference (off by default, as drive.py)")
 
 
 def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_options):
     """``load_policy(model_path, trust=args.trust_model, runtime=args.runtime, ...)``, with the
-    steering filter and hold when the command has :func:`add_steering_arguments`."""
+    steering filter, hold and mirror averaging when the command has
+    :func:`add_steering_arguments`."""
     from clonedrive.drivers.network import load_policy
 
     steering = {"steering_filter_s": getattr(args, "steering_filter", 0.0),
-                "steering_hold": getattr(args, "steering_hold", 0.0)}
+                "steering_hold": getattr(args, "steering_hold", 0.0),
+                "mirror_average": getattr(args, "mirror_average", False)}
     return load_policy(model_path, trust=getattr(args, "trust_model", False),
                        runtime=getattr(args, "runtime", "auto"), **steering, **policy_options)

@@ -145,7 +145,10 @@ class NetworkPolicy:
     (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
     ``steering_filter_s`` > 0 low-passes the predicted steering and ``steering_hold`` > 0 holds
     the wheel through jitter smaller than itself (:class:`SteeringFilter`; both off by default,
-    as drive.py).
+    as drive.py). ``mirror_average`` (off by default) predicts on each frame and on its mirror
+    image and averages the two (the mirror's steering negated, its target speed as it is):
+    the part of the network's frame-to-frame noise that the two views do not share cancels,
+    for twice the inference (:func:`mirrored_mean`).
     """
 
     def __init__(
@@ -161,8 +164,10 @@ class NetworkPolicy:
         batch_size: int = 64,
         steering_filter_s: float = 0.0,
         steering_hold: float = 0.0,
+        mirror_average: bool = False,
     ) -> None:
         check_model(model)
+        self.mirror_average = bool(mirror_average)
         self.steering_filter_s = float(steering_filter_s)
         self.steering_hold = float(steering_hold)
         self.steering_filter = self.new_steering_filter()
@@ -200,7 +205,8 @@ class NetworkPolicy:
         return {"kp": self.controller.kp, "ki": self.controller.ki,
                 "slow_in_curves": self.slow_in_curves, "curve_gain": self.curve_gain,
                 "min_speed_fraction": self.min_speed_fraction,
-                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold}
+                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
+                "mirror_average": self.mirror_average}
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:
@@ -265,23 +271,39 @@ class NetworkPolicy:
         # Frames go in as the model takes them: uint8 for ours (Keras and ONNX alike; a float
         # copy for ONNX Runtime would be rounded back: 7 ms per 8 frames), float32 for a model
         # with a float input. ``forward`` is predict_on_batch, or its checked trace.
-        output = self.forward(images.astype(self.input_dtype, copy=False))
+        frames = images.astype(self.input_dtype, copy=False)
+        if self.mirror_average:
+            frames = np.concatenate([frames, frames[:, :, ::-1]])
+        output = self.forward(frames)
         outputs = list(output) if isinstance(output, list | tuple) else [output]
-        steering = np.asarray(outputs[0]).reshape(len(images), -1)
+        steering = np.asarray(outputs[0]).reshape(len(frames), -1)
         if steering.shape[1] != 1:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
+        if self.mirror_average:
+            steering = mirrored_mean(steering, sign=-1.0)
         # A NaN prediction steers straight rather than poisoning the controls; it is counted.
         nonfinite = ~np.isfinite(steering)
         self.nan_predictions += int(np.count_nonzero(nonfinite))
         steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
         if not self.speed_head:
             return steering, None, nonfinite
-        speed = np.asarray(outputs[1]).reshape(len(images)).astype(np.float32)
+        speed = np.asarray(outputs[1]).reshape(len(frames)).astype(np.float32)
+        if self.mirror_average:
+            speed = mirrored_mean(speed, sign=1.0)
         # A NaN speed means "no opinion": the set speed (the cap) applies.
         speed = np.nan_to_num(speed, nan=1.0, posinf=1.0, neginf=0.0)
         return (steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH),
                 nonfinite)
+
+
+def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
+    """``(values[:N] + sign * values[N:]) / 2`` for predictions on N frames followed by their N
+    mirror images: ``sign`` -1 for the steering (a mirrored road bends the other way), +1 for
+    the target speed (a bend is as sharp either way round)."""
+    half = len(values) // 2
+    return ((values[:half] + np.float32(sign) * values[half:]) * np.float32(0.5)).astype(
+        np.float32)
 
 
 def model_input_dtype(model) -> np.dtype:

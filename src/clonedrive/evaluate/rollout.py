@@ -128,6 +128,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
         "speed_head": speed_head,
         "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
         "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
+        "mirror_average": bool(getattr(policy, "mirror_average", False)),
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")

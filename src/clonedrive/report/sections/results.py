@@ -147,6 +147,8 @@ def _speed_text(report: dict) -> str:
 def _steering_text(report: dict) -> str:
     """What stood between the network's steering and the wheel (nothing, as drive.py)."""
     steps = []
+    if report.get("mirror_average"):
+        steps.append("averaged with the mirrored frame's")
     if float(report.get("steering_filter_s") or 0.0) > 0.0:
         steps.append(f"low-passed with a {float(report['steering_filter_s']):g} s time constant")
     if float(report.get("steering_hold") or 0.0) > 0.0:

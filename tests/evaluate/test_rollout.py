@@ -187,14 +187,15 @@ def test_runs_spread_over_worker_processes_give_the_same_results(tmp_path):
 
 def test_worker_processes_drive_with_the_policys_steering_filter_and_hold(tmp_path):
     """The workers build their own policy from the model file: it must steer through the same
-    filter and hold as the policy evaluate was given."""
+    filter, hold and mirror averaging as the policy evaluate was given."""
     model_file = tmp_path / "tiny.keras"
     build_tiny_model(seed=3).save(model_file)
     config = EvalConfig(tracks=("lake", "mountain"), speeds_mph=(15.0,), laps=1, scenery=False,
                         max_seconds=6.0, workers=2)
     figures = {}
     for name, options in (("raw", {}), ("held", {"steering_filter_s": 0.5,
-                                                 "steering_hold": 0.05})):
+                                                 "steering_hold": 0.05,
+                                                 "mirror_average": True})):
         policy = NetworkPolicy(build_tiny_model(seed=3), set_speed_mph=15.0, **options)
         for workers in (1, 2):
             report = evaluate(policy, EvalConfig(**{**config.__dict__, "workers": workers}),
@@ -202,6 +203,7 @@ def test_worker_processes_drive_with_the_policys_steering_filter_and_hold(tmp_pa
                               model_path=str(model_file))
             figures[name, workers] = [run["steering_rate_per_s"] for run in report["runs"]]
     assert report["steering_hold"] == 0.05 and report["steering_filter_s"] == 0.5
+    assert report["mirror_average"] is True
     for raw, held in zip(figures["raw", 1], figures["held", 1], strict=True):
         assert held < 0.5 * raw  # the filter and hold matter on these runs
     for alone, spread in zip(figures["held", 1], figures["held", 2], strict=True):

@@ -65,8 +65,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(out) as temporary:
+        with atomic_path(out) as temporary:  # creates the folder
             ensemble.save(temporary)
     except OSError as error:
         print(f"error: cannot write {out}: {error}", file=sys.stderr)

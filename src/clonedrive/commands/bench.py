@@ -6,7 +6,11 @@ import json
 import sys
 
 from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.commands.model_options import add_model_arguments, add_steering_arguments
+from clonedrive.commands.model_options import (
+    add_model_arguments,
+    add_steering_arguments,
+    steering_options,
+)
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
@@ -57,9 +61,7 @@ def run(args) -> int:
         config = BenchConfig(models=tuple(args.models), suite=args.suite,
                              splits=tuple(args.split or ()), workers=args.workers,
                              ray=args.ray, batch=args.batch, slow_in_curves=args.slow_in_curves,
-                             steering_filter_s=args.steering_filter,
-                             steering_hold=args.steering_hold,
-                             mirror_average=args.mirror_average,
+                             **steering_options(args),
                              scenery=not args.no_scenery, max_seconds=args.max_seconds,
                              offline_data=tuple(args.offline_data or ()),
                              trust_model=args.trust_model, runtime=args.runtime)

@@ -48,8 +48,14 @@ def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_op
     :func:`add_steering_arguments`."""
     from clonedrive.drivers.network import load_policy
 
-    steering = {"steering_filter_s": getattr(args, "steering_filter", 0.0),
-                "steering_hold": getattr(args, "steering_hold", 0.0),
-                "mirror_average": getattr(args, "mirror_average", False)}
     return load_policy(model_path, trust=getattr(args, "trust_model", False),
-                       runtime=getattr(args, "runtime", "auto"), **steering, **policy_options)
+                       runtime=getattr(args, "runtime", "auto"), **steering_options(args),
+                       **policy_options)
+
+
+def steering_options(args: argparse.Namespace) -> dict:
+    """The :func:`add_steering_arguments` options as NetworkPolicy (and BenchConfig) name them
+    (their defaults when the command has none)."""
+    return {"steering_filter_s": getattr(args, "steering_filter", 0.0),
+            "steering_hold": getattr(args, "steering_hold", 0.0),
+            "mirror_average": getattr(args, "mirror_average", False)}

@@ -141,6 +141,7 @@ def test_training_section_names_the_split_and_its_caveat(report) -> None:
     training = _section(markdown, SECTION_TITLES["training"])
     assert "**Split used: random**" in training
     assert "flatters the validation loss" in training
+    assert ["loss", "mse on the steering label"] in _table_rows(training)
     epochs = [row for row in _table_rows(training) if row[0] == "1"]
     assert len(epochs) == 1 and epochs[0][-1] == "best"
     assert "report/loss.png" in training

@@ -85,6 +85,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
                              "brake for)")
+    parser.add_argument("--consistency", type=float, default=given, metavar="W",
+                        help=f"train each sample beside its next frame (1/15 s later) and add W "
+                             f"times the squared difference of their errors to the steering "
+                             f"loss: less frame-to-frame noise in the predicted steering, a "
+                             f"steadier wheel (default {d.consistency:g}: off). Each step then "
+                             "takes twice the images (see model/consistency.py)")
     parser.add_argument("--init-from", type=str, default=given, metavar="MODEL",
                         help="start from this model's weights (layers matched by name)")
     parser.add_argument("--no-h5", dest="export_h5", action="store_false", default=given,
@@ -100,7 +106,7 @@ _CONFIG_OPTIONS = (
     "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
     "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
     "cache", "export_h5", "speed_head", "speed_loss_weight", "speed_loss", "speed_headroom",
-    "init_from", "crop_top_px",
+    "init_from", "crop_top_px", "consistency",
 )
 
 

@@ -153,6 +153,7 @@ def augment_batch(
     *,
     mirror: np.ndarray | None = None,
     rows: tuple[int, int] | None = None,
+    pairs: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Randomly shift, flip, brighten/darken and shadow a batch of uint8 RGB frames.
 
@@ -161,12 +162,18 @@ def augment_batch(
     :func:`shift_and_flip` (frames to mirror first, their labels already negated).
     ``rows``: compute only these output rows, the same as without it (others 0): a network
     that crops the frame never sees the rest, and it is most of the work.
+    ``pairs``: the batch is N frames followed by N partners (their next frames, for
+    ``train --consistency``); frame ``i`` and frame ``N + i`` get the same shift, flip, light and
+    shadow, so the pair differs only as the two pictures do.
     """
     config = config or AugmentConfig()
     images = np.asarray(images)
     if images.ndim != 4 or images.shape[-1] != 3 or images.dtype != np.uint8:
         raise ValueError(f"expected uint8 images (N, H, W, 3), got {images.dtype} {images.shape}")
-    count, _, width = images.shape[:3]
+    total, _, width = images.shape[:3]
+    if pairs and total % 2:
+        raise ValueError(f"pairs: expected an even number of frames, got {total}")
+    count = total // 2 if pairs else total
     flip = rng.random(count) < config.flip_probability
     dx = rng.integers(-config.shift_max_px, config.shift_max_px + 1, size=count)
     dy = rng.integers(-config.vertical_shift_max_px, config.vertical_shift_max_px + 1, size=count)
@@ -176,6 +183,10 @@ def augment_batch(
     bottom_x = rng.uniform(0.0, width, size=count).astype(np.float32)
     darkness = rng.uniform(config.shadow_darkness_min, config.shadow_darkness_max, size=count)
     right_side = rng.random(count) < 0.5
+    if pairs:
+        flip, dx, dy, brightness, shadow, top_x, bottom_x, darkness, right_side = (
+            np.concatenate([drawn, drawn]) for drawn in (
+                flip, dx, dy, brightness, shadow, top_x, bottom_x, darkness, right_side))
     shifted, labels = shift_and_flip(
         images, steering, dx, dy, flip, steering_per_px=config.steering_per_px, mirror=mirror,
         rows=rows,

@@ -141,6 +141,11 @@ class DrivingBatches(keras.utils.PyDataset):
     ``rows`` = ``(first, end)``: the rows of the frame the network looks at (its crop). Set,
     augmentation computes only those rows, with the same values, and leaves the others 0, so
     training is the same at a third of the work (``model.train`` sets it from the network).
+
+    ``partners`` (``(len(samples),)`` indices into ``samples``, e.g.
+    :func:`clonedrive.data.neighbours.next_frames`): every batch is its N samples followed by
+    their N partners, each pair augmented alike, labels (and weights) in the same order, for the
+    consistency loss of ``train --consistency``.
     """
 
     def __init__(
@@ -157,6 +162,7 @@ class DrivingBatches(keras.utils.PyDataset):
         max_queue_size: int = 4,
         speed_head: bool = False,
         rows: tuple[int, int] | None = None,
+        partners: np.ndarray | None = None,
     ) -> None:
         super().__init__(workers=workers, use_multiprocessing=False, max_queue_size=max_queue_size)
         if batch_size < 1:
@@ -172,6 +178,12 @@ class DrivingBatches(keras.utils.PyDataset):
         self.with_weights = bool(np.any(samples.weight != 1.0))
         self.speed_head = bool(speed_head)
         self.rows = rows
+        if partners is not None:
+            partners = np.asarray(partners, dtype=np.int64)
+            if partners.shape != (len(samples),) or (
+                    len(partners) and not 0 <= partners.min() <= partners.max() < len(samples)):
+                raise ValueError(f"partners: expected {len(samples)} indices into the samples")
+        self.partners = partners
         self.epoch = int(epoch)
         self._order = self._make_order()
 
@@ -191,13 +203,16 @@ class DrivingBatches(keras.utils.PyDataset):
 
     def __getitem__(self, index: int):
         chosen = self.batch_indices(index)
+        if self.partners is not None:
+            chosen = np.concatenate([chosen, self.partners[chosen]])
         images = self.cache.get(self.samples.image_index[chosen])
         steering = self.samples.steering[chosen]
         mirrored = self.samples.flip[chosen]  # the recipe's flipped copies, labels negated
         if self.augment is not None:
             rng = np.random.default_rng([self.seed, self.epoch, index])
             images, steering = augment_batch(
-                images, steering, rng, self.augment, mirror=mirrored, rows=self.rows
+                images, steering, rng, self.augment, mirror=mirrored, rows=self.rows,
+                pairs=self.partners is not None,
             )
         else:
             for position in np.flatnonzero(mirrored):

@@ -93,6 +93,7 @@ class TrainConfig:
     speed_headroom: float = 1.0  # labels at the top speed rise up to this multiple of it
     init_from: str | None = None  # start from this model's weights (layers matched by name)
     crop_top_px: int = 80  # rows the model cuts from the top (model.architectures.CROP_TOP_PX)
+    consistency: float = 0.0  # weight of the next-frame consistency penalty (model.consistency)
 
     def __post_init__(self) -> None:
         from clonedrive.data.split import SPLIT_KINDS
@@ -118,6 +119,10 @@ class TrainConfig:
                              f"{', '.join(SPEED_LOSSES)}")
         if not (math.isfinite(self.speed_headroom) and 1.0 <= self.speed_headroom <= 2.0):
             raise ValueError(f"speed_headroom must be in [1, 2], got {self.speed_headroom}")
+        if not (math.isfinite(self.consistency) and self.consistency >= 0):
+            raise ValueError(f"consistency must be >= 0, got {self.consistency}")
+        if self.consistency and self.loss != "mse":
+            raise ValueError(f"consistency adds to the mse loss, not to {self.loss!r}")
 
 
 @dataclass(frozen=True)
@@ -184,8 +189,13 @@ def train(
         if epochs_done > 0:
             from clonedrive.model.losses import CUSTOM_OBJECTS
 
+            custom_objects = dict(CUSTOM_OBJECTS)
+            if config.consistency:
+                from clonedrive.model import consistency
+
+                custom_objects.update(consistency.CUSTOM_OBJECTS)
             model = keras.saving.load_model(out / "last.keras", safe_mode=True,
-                                            custom_objects=CUSTOM_OBJECTS)
+                                            custom_objects=custom_objects)
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
         else:
             model = build_model(config.model, seed=config.seed, dropout=config.dropout,
@@ -199,11 +209,11 @@ def train(
             augment=AugmentConfig() if config.augment else None, seed=config.seed,
             epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
             # Augment only the rows the network keeps after its crop (same pixels, less work).
-            rows=visible_rows(model),
+            rows=visible_rows(model), partners=_partners(config, data.train),
         )
         val_batches = DrivingBatches(
             data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
-            speed_head=config.speed_head,
+            speed_head=config.speed_head, partners=_partners(config, data.val),
         )
         recorder = _run_recorder_class()(out, config, history, state)
         if epochs_done < config.epochs and not recorder.should_stop():
@@ -249,10 +259,27 @@ def visible_rows(model) -> tuple[int, int] | None:
     return (first, end) if 0 <= first < end <= IMAGE_SHAPE[0] else None
 
 
+def _partners(config: TrainConfig, samples):
+    """Each sample's next frame when training with ``consistency``, else None."""
+    if not config.consistency:
+        return None
+    from clonedrive.data.neighbours import next_frames
+
+    return next_frames(samples)
+
+
+def _steering_loss(config: TrainConfig):
+    if not config.consistency:
+        return config.loss
+    from clonedrive.model.consistency import ConsistentMSE
+
+    return ConsistentMSE(config.consistency)
+
+
 def _compile(keras, model, config: TrainConfig) -> None:
     optimizer = keras.optimizers.Adam(learning_rate=config.learning_rate)
     if not config.speed_head:
-        model.compile(optimizer=optimizer, loss=config.loss,
+        model.compile(optimizer=optimizer, loss=_steering_loss(config),
                       metrics=[keras.metrics.MeanSquaredError(name="mse")])
         return
     from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
@@ -260,7 +287,7 @@ def _compile(keras, model, config: TrainConfig) -> None:
 
     model.compile(
         optimizer=optimizer,
-        loss={STEERING_OUTPUT: config.loss, SPEED_OUTPUT: speed_loss(config.speed_loss)},
+        loss={STEERING_OUTPUT: _steering_loss(config), SPEED_OUTPUT: speed_loss(config.speed_loss)},
         loss_weights={STEERING_OUTPUT: 1.0, SPEED_OUTPUT: config.speed_loss_weight},
         metrics={STEERING_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")],
                  SPEED_OUTPUT: [keras.metrics.MeanSquaredError(name="mse")]},

@@ -32,7 +32,10 @@ def build(ctx: ReportContext) -> list[Section]:
         rows = [
             ("architecture", f"`{settings.get('model', '?')}`"),
             ("optimiser", f"Adam, learning rate {settings.get('learning_rate', '?')}"),
-            ("loss", f"{settings.get('loss', 'mse')} on the steering label"),
+            ("loss", f"{settings.get('loss', 'mse')} on the steering label"
+                     + (f", plus {float(settings['consistency']):g} x the squared "
+                        "difference of neighbouring frames' errors (consistency)"
+                        if settings.get("consistency") else "")),
             ("batch size", str(settings.get("batch_size", "?"))),
             ("epochs", f"{len(history)} trained ({settings.get('epochs', '?')} configured)"
                        + (f", early stopping after {settings['early_stopping_patience']} "

@@ -5,7 +5,7 @@ one frame to the next. A network that answers two such frames far more different
 labels differ is reacting to noise in the picture (aliasing, a tree popping in), and that noise
 is what makes a cloned car's wheel jitter. ``train --consistency`` trains on each sample together
 with its next frame and penalises the difference of the two predictions that the labels do not
-explain (:mod:`clonedrive.model.losses`).
+explain (:mod:`clonedrive.model.consistency`).
 """
 
 from __future__ import annotations

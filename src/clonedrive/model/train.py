@@ -187,15 +187,11 @@ def train(
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
         if epochs_done > 0:
-            from clonedrive.model.losses import CUSTOM_OBJECTS
+            from clonedrive.model import consistency, losses
 
-            custom_objects = dict(CUSTOM_OBJECTS)
-            if config.consistency:
-                from clonedrive.model import consistency
-
-                custom_objects.update(consistency.CUSTOM_OBJECTS)
-            model = keras.saving.load_model(out / "last.keras", safe_mode=True,
-                                            custom_objects=custom_objects)
+            model = keras.saving.load_model(
+                out / "last.keras", safe_mode=True,
+                custom_objects={**losses.CUSTOM_OBJECTS, **consistency.CUSTOM_OBJECTS})
             _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
         else:
             model = build_model(config.model, seed=config.seed, dropout=config.dropout,

@@ -5,9 +5,10 @@
 - ``model.keras``  the model of the epoch with the lowest validation loss;
 - ``last.keras``   the model and optimiser state after the latest epoch (for ``resume``);
 - ``model.h5``     a legacy HDF5 copy of ``model.keras`` for tools that expect one;
-- ``history.csv``  per epoch: loss, val_loss (both include the L2 penalty and, with a speed
-  head, the weighted speed loss), mse, val_mse (plain mean squared steering error), seconds;
-  with a speed head also speed_mse, val_speed_mse (of the normalised target speed);
+- ``history.csv``  per epoch: loss, val_loss (both include the L2 penalty, with a speed head
+  the weighted speed loss, and with ``consistency`` its penalty), mse, val_mse (plain mean
+  squared steering error), seconds; with a speed head also speed_mse, val_speed_mse (of the
+  normalised target speed);
 - ``loss.png``     training and validation loss per epoch;
 - ``config.json``  the :class:`TrainConfig` (loadable with ``config.load_config``);
 - ``recipe.toml``  the recipe used, with absolute paths (``resume`` reads it back);
@@ -595,7 +596,8 @@ def _run_recorder_class():
             if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
                 _save_model_atomic(self.model, self.out / "model.keras")
             write_history(self.out / HISTORY_NAME, self.history)
-            plot_loss(self.history, self.out / "loss.png")
+            plot_loss(self.history, self.out / "loss.png",
+                      consistency=bool(self.config.consistency))
             best_epoch, best_loss = self.best_epoch()
             self.state = {"epochs_done": epoch + 1, "best_epoch": best_epoch,
                           "best_val_loss": best_loss}
@@ -616,8 +618,12 @@ def _save_model_atomic(model, path: Path) -> None:
         model.save(temporary)
 
 
-def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
-    """Training and validation loss per epoch as a PNG (matplotlib Agg), atomically."""
+def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool = False
+              ) -> Path:
+    """Training and validation loss per epoch as a PNG (matplotlib Agg), atomically; the axis
+    names what the loss holds (``consistency``: the run trained with that penalty)."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -632,8 +638,9 @@ def plot_loss(history: list[dict], path: str | os.PathLike) -> Path:
     axes.plot(epochs, [row["val_loss"] for row in history], "s-", label="validation loss")
     axes.set_xlabel("epoch")
     speed = bool(history) and "speed_mse" in history[0]
-    axes.set_ylabel("loss (steering MSE + speed MSE + L2)" if speed
-                    else "loss (steering MSE + any L2 penalty)")
+    terms = ["steering MSE"] + (["consistency"] if consistency else []) + (
+        ["speed MSE", "L2"] if speed else ["any L2 penalty"])
+    axes.set_ylabel(textwrap.fill(f"loss ({' + '.join(terms)})", 40))  # fits the axis
     axes.set_title("training and validation loss")
     axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.grid(True, alpha=0.3)

@@ -84,7 +84,8 @@ def build(ctx: ReportContext) -> list[Section]:
     elif history:
         from clonedrive.model.train import plot_loss
 
-        figure_path = plot_loss(history, ctx.figures_dir / "loss.png")
+        figure_path = plot_loss(history, ctx.figures_dir / "loss.png",
+                                consistency=bool((settings or {}).get("consistency")))
     else:
         figure_path = None
     if figure_path is not None:

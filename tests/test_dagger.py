@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.dagger import DaggerConfig, MixedDriver, format_table
+from clonedrive.dagger import DaggerConfig, MixedDriver, format_table, record_plain
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
@@ -110,3 +110,18 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     # Re-run on the same folder with another noise: the saved plain data is not reused silently.
     assert main([*arguments, "--plain-noise", "0.15"]) == 2
     assert "recorded with steering noise 0.0, not the 0.15" in capsys.readouterr().err
+    # ... nor data recorded for another label count (a run re-used with more iterations).
+    saved = out / "plain" / "data" / "record.json"
+    saved.write_text(json.dumps({**json.loads(saved.read_text()), "asked": 60}))
+    assert main([*arguments, "--plain-noise", "0"]) == 2
+    assert "recorded for 60 labels, not the 90 DAgger collected by iteration 2" \
+        in capsys.readouterr().err
+
+
+def test_plain_cloning_records_as_many_labels_as_asked_past_one_lap(tmp_path: Path) -> None:
+    # 1,400 rows on the 1,090 m lake at 30 mph is more than a lap: an estimate of laps from a
+    # slow average speed (8 m/s) once stopped at the lap's end, short of the rows asked for.
+    config = DaggerConfig(tracks=("lake",), speed_mph=30.0, plain_noise=0.0, scenery=False)
+    result = record_plain(config, 1400, tmp_path / "data")
+    assert result == {"labels": 1400, "asked": 1400, "noise": 0.0}
+    assert len(read_driving_log(tmp_path / "data" / "lake").rows) == 1400

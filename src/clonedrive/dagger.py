@@ -295,21 +295,25 @@ def record_plain(config: DaggerConfig, labels: int, out: Path) -> dict:
     evenly over the tracks."""
     from clonedrive.data.recorder import RecordConfig, record
     from clonedrive.paths import safe_stem
+    from clonedrive.udacity_spec import CONTROL_HZ
     from clonedrive.world.catalog import load_track
+    from clonedrive.world.vehicle import MPH_TO_MPS
 
     per_track = max(1, math.ceil(labels / len(config.tracks)))
+    seconds = per_track / CONTROL_HZ
     rows = 0
     for index, name in enumerate(config.tracks):
         length = load_track(name).length_m
-        # Laps enough to cover the rows at a slow average speed; ``seconds`` stops it.
-        laps = max(1, math.ceil(per_track / 15.0 * 8.0 / length))
-        summary = record(RecordConfig(track=name, laps=laps, seconds=per_track / 15.0,
+        # Laps enough for the rows even at the set speed throughout (and a quarter more for a
+        # downhill overshoot); ``seconds`` stops it at the rows asked for.
+        laps = max(1, math.ceil(seconds * config.speed_mph * MPH_TO_MPS * 1.25 / length))
+        summary = record(RecordConfig(track=name, laps=laps, seconds=seconds,
                                       speed_mph=config.speed_mph, noise=config.plain_noise,
                                       seed=config.seed + 100 + index, relative_paths=True,
                                       start_time=START_TIME, scenery=config.scenery),
                          out / safe_stem(name), progress=False)
         rows += summary.rows
-    result = {"labels": rows, "noise": config.plain_noise}
+    result = {"labels": rows, "asked": labels, "noise": config.plain_noise}
     write_json_atomic(out / "record.json", result)
     return result
 
@@ -519,6 +523,10 @@ def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path
         raise ValueError(f"{folder / 'data'}: recorded with steering noise "
                          f"{recorded.get('noise')}, not the {config.plain_noise} asked for "
                          "(plain_noise); use another --out, or remove that folder")
+    if recorded is not None and recorded.get("asked", recorded.get("labels")) != labels:
+        raise ValueError(f"{folder / 'data'}: recorded for {recorded.get('asked')} labels, not "
+                         f"the {labels} DAgger collected by iteration {iteration}; use another "
+                         "--out, or remove that folder")
     recorded = recorded or record_plain(config, labels, folder / "data")
     folders = [folder / "data" / item.name for item in sorted((folder / "data").iterdir())
                if (item / "driving_log.csv").is_file()]

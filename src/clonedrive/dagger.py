@@ -523,8 +523,9 @@ def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path
         raise ValueError(f"{folder / 'data'}: recorded with steering noise "
                          f"{recorded.get('noise')}, not the {config.plain_noise} asked for "
                          "(plain_noise); use another --out, or remove that folder")
-    if recorded is not None and recorded.get("asked", recorded.get("labels")) != labels:
-        raise ValueError(f"{folder / 'data'}: recorded for {recorded.get('asked')} labels, not "
+    asked = None if recorded is None else recorded.get("asked", recorded.get("labels"))
+    if recorded is not None and asked != labels:
+        raise ValueError(f"{folder / 'data'}: recorded for {asked} labels, not "
                          f"the {labels} DAgger collected by iteration {iteration}; use another "
                          "--out, or remove that folder")
     recorded = recorded or record_plain(config, labels, folder / "data")

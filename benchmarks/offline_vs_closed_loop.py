@@ -2,7 +2,8 @@
 
 Codevilla et al. (2018) found a network's offline error a poor predictor of how it drives. This
 script asks the same of ours: for every model of a `clonedrive dagger` run (the base model, each
-DAgger iteration, and plain cloning with as many extra labels) it computes the steering MSE on
+DAgger iteration, and plain cloning with as many extra labels, at each iteration's count too
+with ``--plain-each``) it computes the steering MSE on
 held-out expert recordings and sets it beside the model's closed-loop figures from the same
 dagger.json (clean-lap success % and interventions per km, per split), with their Pearson and
 Spearman correlations (`clonedrive.bench.scores.correlation`).
@@ -61,6 +62,9 @@ def main() -> int:
     report = json.loads((args.dagger / "dagger.json").read_text(encoding="utf-8"))
     models = [(f"iteration {row['iteration']}" if row["method"] != "base" else "base",
                row) for row in report["iterations"]]
+    # --plain-each: plain cloning at each earlier iteration's label count too.
+    models += [(f"plain cloning, it. {row['iteration']}", row)
+               for row in report.get("plain_each") or []]
     if report.get("plain"):
         models.append(("plain cloning", report["plain"]))
     with tempfile.TemporaryDirectory() as temporary:
@@ -76,15 +80,15 @@ def main() -> int:
         splits = [args.split]
     print(f"offline steering MSE on {len(rows)} held-out rows ({', '.join(TRACKS)}, expert at "
           f"{SPEED_MPH:g} mph with noise {NOISE})")
-    head = f"{'model':<16}{'offline MSE':>12}" + "".join(
+    head = f"{'model':<22}{'offline MSE':>12}" + "".join(
         f"{s[:22]:>24}" for s in splits)
-    print(head + "\n" + " " * 28 + "".join(f"{'success % / int. per km':>24}" for _ in splits))
+    print(head + "\n" + " " * 34 + "".join(f"{'success % / int. per km':>24}" for _ in splits))
     for name, row in models:
         cells = []
         for split in splits:
             figures = row["eval"].get(split) or {}
             cells.append(f"{figures.get('success_pct')} / {figures.get('interventions_per_km')}")
-        print(f"{name:<16}{mse[name]:>12.5f}" + "".join(f"{c:>24}" for c in cells))
+        print(f"{name:<22}{mse[name]:>12.5f}" + "".join(f"{c:>24}" for c in cells))
     result = {"rows": len(rows), "models": {name: {"offline_mse": mse[name]} for name, _ in models},
               "correlation": {}}
     for split in splits:

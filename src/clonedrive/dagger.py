@@ -519,16 +519,18 @@ def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path
     """Plain cloning with ``labels`` extra expert labels, trained from the base model for as
     many epochs as DAgger had trained by ``iteration``, and evaluated as the iterations are."""
     recorded = _reuse_json(folder / "data" / "record.json")
-    if recorded is not None and recorded.get("noise") != config.plain_noise:
-        raise ValueError(f"{folder / 'data'}: recorded with steering noise "
-                         f"{recorded.get('noise')}, not the {config.plain_noise} asked for "
-                         "(plain_noise); use another --out, or remove that folder")
-    asked = None if recorded is None else recorded.get("asked", recorded.get("labels"))
-    if recorded is not None and asked != labels:
-        raise ValueError(f"{folder / 'data'}: recorded for {asked} labels, not "
-                         f"the {labels} DAgger collected by iteration {iteration}; use another "
-                         "--out, or remove that folder")
-    recorded = recorded or record_plain(config, labels, folder / "data")
+    if recorded is None:
+        recorded = record_plain(config, labels, folder / "data")
+    else:  # reused only when recorded as this run asks (older folders hold no "asked")
+        if recorded.get("noise") != config.plain_noise:
+            raise ValueError(f"{folder / 'data'}: recorded with steering noise "
+                             f"{recorded.get('noise')}, not the {config.plain_noise} asked for "
+                             "(plain_noise); use another --out, or remove that folder")
+        asked = recorded.get("asked", recorded.get("labels"))
+        if asked != labels:
+            raise ValueError(f"{folder / 'data'}: recorded for {asked} labels, not the "
+                             f"{labels} DAgger collected by iteration {iteration}; use another "
+                             "--out, or remove that folder")
     folders = [folder / "data" / item.name for item in sorted((folder / "data").iterdir())
                if (item / "driving_log.csv").is_file()]
     model = retrain(base_config, aggregate_recipe(base_recipe, folders), base_model,

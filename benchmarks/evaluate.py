@@ -24,6 +24,8 @@ is extra work beside the loop, not part of it.
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 - ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
   pairs of 10 s runs, one PyTorch thread in both).
+- ``shared_scene_speedup``: that steady loop with the 8 cars sharing one scene (a
+  ``CameraPool``, as evaluate's groups do) / with a scene per car (median of 3 alternating pairs).
 
 ``loop_ratio``, ``video_ratio`` and ``loop_ratio_workers`` are each the median of 3 alternating
 pairs (the figure, then its reference), as the machine's speed drifts within a run.
@@ -66,17 +68,20 @@ def closed_loop_steps_per_s(policy, batch: int, seconds: float, *,
 
 
 def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
-                            overlap: bool = True) -> float:
+                            overlap: bool = True, shared: bool = True) -> float:
     """Closed-loop steps/s of ``batch`` cars in lock-step once built: the runner's stepping
-    alone (render, predict, control, physics, rules), without scene builds or map plots."""
+    alone (render, predict, control, physics, rules), without scene builds or map plots.
+    ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each."""
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
     from clonedrive.keras_backend import compute_threads
+    from clonedrive.sim.camera_pool import CameraPool
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     speeds = [20.0 + 0.5 * i for i in range(batch)]
-    sims = [Simulator("lake", SimConfig(cameras=("center",))) for _ in speeds]
+    pool = CameraPool() if shared else None
+    sims = [Simulator("lake", SimConfig(cameras=("center",)), pool=pool) for _ in speeds]
     try:
         episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed, max_seconds=seconds),
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,
@@ -97,6 +102,8 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
     finally:
         for sim in sims:
             sim.close()
+        if pool is not None:
+            pool.close()
 
 
 def workers_loop_steps_per_s(model_path: str, batch: int, seconds: float,
@@ -223,6 +230,11 @@ def main() -> None:
     pairs = [(steady_loop_steps_per_s(policy, 8, 10.0, overlap=False),
               steady_loop_steps_per_s(policy, 8, 10.0, overlap=True)) for _ in range(3)]
     overlap_speedup = statistics.median(with_ / without for without, with_ in pairs)
+    # What sharing one scene among the 8 cars gains (a CameraPool, as evaluate does): the same
+    # steady loop with a scene per car / with the shared one, alternately.
+    shared_pairs = [(steady_loop_steps_per_s(policy, 8, 10.0, shared=False),
+                     steady_loop_steps_per_s(policy, 8, 10.0, shared=True)) for _ in range(3)]
+    shared_scene_speedup = statistics.median(shared / own for own, shared in shared_pairs)
     loop_ratio = batched / render_only
     video_ratio = with_video / single
     print("closed loop, lake, fast model, full scenery (includes scene build and map plots):")
@@ -246,6 +258,9 @@ def main() -> None:
     print("  the same without / with the network on a second thread, alternately: "
           + ", ".join(f"{without:.0f} / {with_:.0f}" for without, with_ in pairs)
           + f" steps/s -> overlap_speedup {overlap_speedup:.2f} (median)")
+    print("  the same with a scene per car / one scene shared by the 8 cars, alternately: "
+          + ", ".join(f"{own:.0f} / {shared:.0f}" for own, shared in shared_pairs)
+          + f" steps/s -> shared_scene_speedup {shared_scene_speedup:.2f} (median)")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -275,6 +290,7 @@ def main() -> None:
                       "loop_ratio_workers": round(on_workers / render_workers, 3),
                       "steps_per_s_workers": round(on_workers, 1),
                       "overlap_speedup": round(overlap_speedup, 3),
+                      "shared_scene_speedup": round(shared_scene_speedup, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),
                       "steps_per_s_video": round(with_video, 1),

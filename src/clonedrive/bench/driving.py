@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from clonedrive.bench.suite import EpisodeSpec
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Decision, Episode, PerCar, Runner, Step
+from clonedrive.sim.camera_pool import CameraPool
 from clonedrive.sim.simulator import Controls, SimConfig, SimObservation, Simulator
 
 #: What a delayed car applies before its first decision arrives: coast straight.
@@ -107,10 +108,11 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
 
     torch.set_num_threads(1)  # results must not depend on how many workers share the cores
     sims = []
+    pool = CameraPool()  # the runs on one track in one look share a scene
     try:
         for spec in specs:
             sims.append(Simulator(spec.track, SimConfig(cameras=("center",), scenery=scenery,
-                                                        conditions=spec.conditions)))
+                                                        conditions=spec.conditions), pool=pool))
         episodes = _episodes(sims, specs, rules)
         driver = NetworkDriver(policy, [spec.speed_mph for spec in specs])
         latency = [spec.conditions.latency_steps for spec in specs]
@@ -120,6 +122,7 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     finally:
         for sim in sims:
             sim.close()
+        pool.close()
 
 
 def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:

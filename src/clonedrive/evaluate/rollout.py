@@ -242,10 +242,12 @@ def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
     return int(seconds * 15)
 
 
-def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path) -> _Run:
+def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path,
+              pool) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
-    sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery))
+    sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery),
+                    pool=pool)
     try:
         rules = EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph,
                              max_seconds=config.max_seconds,
@@ -265,13 +267,16 @@ def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Pat
 def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
                  config: EvalConfig, out: Path, bar, publish, *, overlap: bool = False) -> None:
     """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
-    cars on a second thread while the other half renders (:class:`Runner`)."""
+    cars on a second thread while the other half renders (:class:`Runner`). The group's cars on
+    one track share one scene (:class:`CameraPool`)."""
     from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.sim.camera_pool import CameraPool
 
     runs: list[_Run] = []
+    pool = CameraPool()
     try:
         for index, spec in group:
-            runs.append(_open_run(index, spec, names[index], config, out))
+            runs.append(_open_run(index, spec, names[index], config, out, pool))
         if config.video_saliency and any(run.video is not None for run in runs):
             from clonedrive.model.saliency import VisualBackProp
 
@@ -300,6 +305,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
             if run.video is not None:
                 run.video.close()
             run.episode.sim.close()
+        pool.close()
 
 
 def _record_step(run: _Run, step: Step, out: Path) -> None:

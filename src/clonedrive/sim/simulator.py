@@ -3,7 +3,9 @@
 ``Simulator(track, config)`` follows the Gymnasium shape without being an Env itself:
 ``reset(seed, options) -> (observation, info)`` and ``step(controls) -> (observation, info)``.
 The Gymnasium Env (``clonedrive.envs``) sits on top. Cameras are rendered by Panda3D only when the
-configuration asks for them; the engine is owned by this object and released by :meth:`close`.
+configuration asks for them; the engine is owned by this object and released by :meth:`close`, or
+lent by a :class:`~clonedrive.sim.camera_pool.CameraPool` (``pool=``) that shares one scene among
+the simulators of a group that look alike, and given back to it by :meth:`close`.
 
 Measurement conventions (DESIGN.md): CTE + = right of centre in the driving direction; an off-road
 event is the moment any tyre's contact point leaves the road surface, checked every control step;
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +35,9 @@ from clonedrive.world.vehicle import (
     tyre_positions,
 )
 from clonedrive.world.vehicle import step as vehicle_step
+
+if TYPE_CHECKING:
+    from clonedrive.sim.camera_pool import CameraPool
 
 __all__ = ["Controls", "OffRoadEvent", "SimConfig", "SimObservation", "Simulator"]
 
@@ -116,9 +122,14 @@ class _Pose:
 class Simulator:
     """A car on a track. Use as a context manager, or call :meth:`close`."""
 
-    def __init__(self, track: Track | str, config: SimConfig | None = None):
+    def __init__(self, track: Track | str, config: SimConfig | None = None, *,
+                 pool: CameraPool | None = None):
         self.track = load_track(track) if isinstance(track, str) else track
         self.config = config or SimConfig()
+        #: Where the cameras come from: a :class:`~clonedrive.sim.camera_pool.CameraPool`
+        #: shared with the other simulators of a group (one scene for all who look alike), or
+        #: None: this simulator builds its own scene.
+        self.pool = pool
         self.params = self.config.vehicle
         self._substeps = int(round(self.config.physics_hz / self.config.control_hz))
         self._dt_s = 1.0 / self.config.physics_hz
@@ -142,24 +153,23 @@ class Simulator:
         self.close()
 
     def close(self) -> None:
-        """Release the rendering engine (if one was opened)."""
-        if self._rig is not None and hasattr(self._rig, "close"):
+        """Release the rendering engine (if one was opened), or give the rig back to the pool."""
+        if self._rig is not None and self.pool is not None:
+            self.pool.give_back(self._rig)
+        elif self._rig is not None:
             self._rig.close()
-        if self._scene is not None:
             self._scene.close()
         self._rig = None
         self._scene = None
 
     def _open_cameras(self, seed: int) -> None:
-        from clonedrive.sim.cameras import CameraRig
-        from clonedrive.sim.scene import RandomizationConfig, Scene
+        from clonedrive.sim.camera_pool import build_rig
 
-        randomization = RandomizationConfig() if self.config.randomize else None
-        self._scene = Scene(self.track, scenery=self.config.scenery,
-                            randomization=randomization, seed=seed,
-                            conditions=self.config.conditions)
-        self._rig = CameraRig(self._scene, cameras=self.config.cameras,
-                              width=self.config.image_width, height=self.config.image_height)
+        if self.pool is not None:
+            self._rig = self.pool.open(self.track, self.config, seed)
+        else:
+            self._rig = build_rig(self.track, self.config, seed)
+        self._scene = self._rig.scene
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None

@@ -119,3 +119,18 @@ def test_booleans_are_not_coordinates():
     data["centerline"][3] = [True, 1.0, 0.0]
     with pytest.raises(TrackError, match="centerline point 3"):
         TrackSpec.from_dict(data)
+
+
+def test_built_in_and_generated_tracks_are_made_once_and_read_only(tmp_path):
+    lake = load_track("lake")
+    assert load_track("lake") is lake  # the file is read once per process
+    assert load_track("gen2:hard:5") is load_track("gen2:hard:5")
+    for track in (lake, load_track("gen2:hard:5")):
+        with pytest.raises(ValueError, match="read-only"):
+            track.xyz[0, 0] = 1.0  # a write would change every caller's track
+    # A track file is read again each time: it may have changed in between.
+    path = tmp_path / "copy.json"
+    path.write_text(json.dumps(lake.spec.to_dict()))
+    first = load_track(str(path))
+    assert load_track(str(path)) is not first
+    first.xyz[0, 0] += 1.0  # and it is the caller's own

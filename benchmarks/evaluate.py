@@ -24,6 +24,10 @@ is extra work beside the loop, not part of it.
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 - ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
   pairs of 10 s runs, one PyTorch thread in both).
+- ``render_beside_network_ratio``: center-camera frames/s while the network predicts batches on
+  a second thread / alone (median of 3 pairs): what sharing the machine's two cores costs the
+  rendering by itself, with none of our code in between (the loop's network is busy for part of
+  each step, so the loop pays part of it).
 - ``shared_scene_speedup``: that steady loop with the 8 cars sharing one scene (a
   ``CameraPool``, as evaluate's groups do) / with a scene per car (median of 3 alternating pairs).
 
@@ -166,6 +170,51 @@ def render_only_steps_per_s(steps: int, track_name: str = "lake", *,
     return steps / (time.perf_counter() - start)
 
 
+def render_beside_network(policy, frames: int = 400) -> tuple[float, float]:
+    """Center-camera frames/s on the lake, (alone, while the network predicts batches of 4 on a
+    second thread): what the two cores' sharing costs the rendering, apart from any of our code
+    (the render call releases Python's lock; one PyTorch thread)."""
+    import threading
+
+    import numpy as np
+
+    from clonedrive.keras_backend import compute_threads
+    from clonedrive.sim.cameras import CameraRig
+    from clonedrive.sim.scene import Scene
+    from clonedrive.udacity_spec import IMAGE_SHAPE
+    from clonedrive.world.catalog import load_track
+
+    track = load_track("lake")
+    batch = np.zeros((4, *IMAGE_SHAPE), np.uint8)
+    stop = threading.Event()
+
+    def predict() -> None:
+        with compute_threads(1):
+            while not stop.is_set():
+                policy.predict(batch)
+
+    with Scene(track) as scene, CameraRig(scene, cameras=("center",)) as rig:
+        x, y, z = (float(v) for v in track.point(100.0))
+        heading = float(track.heading_at(100.0))
+        rig.render(x, y, z, heading)
+
+        def rate() -> float:
+            start = time.perf_counter()
+            for _ in range(frames):
+                rig.render(x, y, z, heading)
+            return frames / (time.perf_counter() - start)
+
+        alone = rate()
+        helper = threading.Thread(target=predict)
+        helper.start()
+        try:
+            beside = rate()
+        finally:
+            stop.set()
+            helper.join()
+    return alone, beside
+
+
 #: Alternating (figure, reference) pairs per ratio.
 PAIRS = 3
 
@@ -235,6 +284,9 @@ def main() -> None:
     shared_pairs = [(steady_loop_steps_per_s(policy, 8, 10.0, shared=False),
                      steady_loop_steps_per_s(policy, 8, 10.0, shared=True)) for _ in range(3)]
     shared_scene_speedup = statistics.median(shared / own for own, shared in shared_pairs)
+    # The ceiling the two cores set: rendering while the network runs on the other core.
+    beside_pairs = [render_beside_network(policy) for _ in range(3)]
+    beside_ratio = statistics.median(beside / alone for alone, beside in beside_pairs)
     loop_ratio = batched / render_only
     video_ratio = with_video / single
     print("closed loop, lake, fast model, full scenery (includes scene build and map plots):")
@@ -261,6 +313,9 @@ def main() -> None:
     print("  the same with a scene per car / one scene shared by the 8 cars, alternately: "
           + ", ".join(f"{own:.0f} / {shared:.0f}" for own, shared in shared_pairs)
           + f" steps/s -> shared_scene_speedup {shared_scene_speedup:.2f} (median)")
+    print("  rendering alone / while the network predicts on the other core: "
+          + ", ".join(f"{alone:.0f} / {beside:.0f}" for alone, beside in beside_pairs)
+          + f" frames/s -> render_beside_network_ratio {beside_ratio:.2f} (median)")
 
     from server_latency import round_trips, sample_jpeg
 
@@ -291,6 +346,7 @@ def main() -> None:
                       "steps_per_s_workers": round(on_workers, 1),
                       "overlap_speedup": round(overlap_speedup, 3),
                       "shared_scene_speedup": round(shared_scene_speedup, 3),
+                      "render_beside_network_ratio": round(beside_ratio, 3),
                       "video_ratio": round(video_ratio, 3),
                       "render_only_steps_per_s": round(render_only, 1),
                       "steps_per_s_video": round(with_video, 1),

@@ -45,9 +45,8 @@ def test_traced_outputs_equal_predict_on_batch_bit_for_bit(real_frames, architec
         assert (speed is not None) == speed_head
 
 
-def test_a_trace_that_differs_is_not_used(real_frames) -> None:
-    """A layer whose output depends on Python state the trace would freeze: the trace's
-    output differs from predict_on_batch's on the first batch, so it is never used."""
+def untraceable_model():
+    """A model with a layer whose output depends on Python state a trace would freeze."""
     import keras
     from keras import layers, ops
 
@@ -62,6 +61,13 @@ def test_a_trace_that_differs_is_not_used(real_frames) -> None:
 
     inputs = keras.Input((160, 320, 3), dtype="uint8")
     model = keras.Model(inputs, Calls()(ops.cast(inputs, "float32")))
+    return model
+
+
+def test_a_trace_that_differs_is_not_used(real_frames) -> None:
+    """A layer whose output depends on Python state the trace would freeze: the trace's
+    output differs from predict_on_batch's on the first batch, so it is never used."""
+    model = untraceable_model()
     forward = forward_for(model)
     first = np.asarray(forward(real_frames[:2]))
     second = np.asarray(forward(real_frames[:2]))
@@ -86,3 +92,51 @@ def test_traces_are_bounded_and_onnx_is_not_traced(real_frames) -> None:
     frozen = real_frames[:8].copy()
     frozen.flags.writeable = False
     np.testing.assert_array_equal(forward(frozen), model.predict_on_batch(real_frames[:8]))
+
+
+def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real_frames,
+                                                                             tmp_path) -> None:
+    """What evaluate hands its worker processes: the policy's checked traces for every batch it
+    will predict (here up to 3 cars, mirrored: 2, 4 and 6 frames). A fresh process runs them
+    with PyTorch alone, and steers and sets its speed exactly as the Keras model does."""
+    import pickle
+    import subprocess
+    import sys
+
+    from clonedrive.drivers.traced import TracedModel
+
+    model = build_model("fast", seed=5, speed_head=True)
+    policy = NetworkPolicy(model, mirror_average=True)
+    portable = policy.portable(3)
+    assert sorted(portable.traces) == [2, 4, 6]
+    assert portable.output_names == tuple(model.output_names)
+    frames = real_frames[:3]
+    want = [policy.predict(frames[:count]) for count in (1, 2, 3)]
+    (tmp_path / "portable.pkl").write_bytes(pickle.dumps((portable, frames)))
+    script = (
+        "import pickle, sys\n"
+        "from clonedrive.drivers.network import NetworkPolicy\n"
+        "from clonedrive.drivers.traced import TracedModel\n"
+        f"portable, frames = pickle.loads(open({str(tmp_path / 'portable.pkl')!r}, 'rb').read())\n"
+        "policy = NetworkPolicy(TracedModel(portable), mirror_average=True)\n"
+        "got = [policy.predict(frames[:count]) for count in (1, 2, 3)]\n"
+        f"open({str(tmp_path / 'got.pkl')!r}, 'wb').write(pickle.dumps(got))\n"
+        "print('keras' in sys.modules, policy.speed_head)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=300, check=True)
+    assert done.stdout.split()[-2:] == ["False", "True"]  # no Keras imported; speed head seen
+    got = pickle.loads((tmp_path / "got.pkl").read_bytes())
+    for (steering, speed), (want_steering, want_speed) in zip(got, want, strict=True):
+        np.testing.assert_array_equal(steering, want_steering)
+        np.testing.assert_array_equal(speed, want_speed)
+    with pytest.raises(ValueError, match=r"no trace for a batch of 5 frames \(traced: \[2, 4, 6\]"):
+        TracedModel(portable).predict_on_batch(np.concatenate([real_frames[:5]]))
+
+
+def test_a_model_that_does_not_trace_exactly_is_not_made_portable(real_frames) -> None:
+    model = untraceable_model()
+    assert NetworkPolicy(model).portable(2) is None  # its workers load the model file instead
+    pytest.importorskip("onnxruntime")
+    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+
+    assert NetworkPolicy(OnnxModel(onnx_bytes(build_model("fast", seed=1)))).portable(2) is None

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from clonedrive.drivers.traced import forward_for
+from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
@@ -208,6 +208,20 @@ class NetworkPolicy:
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
                 "mirror_average": self.mirror_average}
 
+    def portable(self, cars: int) -> PortableModel | None:
+        """This policy's model as checked traces for every batch it predicts when it drives up to
+        ``cars`` cars in lock-step (fewer as runs finish; twice as many frames with
+        ``mirror_average``, in chunks of ``batch_size``), for a worker process to run without
+        Keras (:class:`~clonedrive.drivers.traced.TracedModel`). None where the model does not
+        run traced (ONNX Runtime, a model PyTorch cannot trace exactly)."""
+        if not isinstance(self.forward, TracedForward):
+            return None
+        sizes = set()
+        for count in range(1, int(cars) + 1):
+            frames = count * (2 if self.mirror_average else 1)
+            sizes.update([min(frames, self.batch_size), frames % self.batch_size])
+        return self.forward.portable(sorted(size for size in sizes if size > 0))
+
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:
         """The speed to aim for when the network steers ``steering`` and (with a speed head)
@@ -308,11 +322,7 @@ def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
 
 def model_input_dtype(model) -> np.dtype:
     """The dtype ``model``'s image input takes (float32 unless it says otherwise)."""
-    dtype = getattr(model.inputs[0], "dtype", None)
-    try:
-        return np.dtype(dtype) if dtype is not None else np.dtype(np.float32)
-    except TypeError:  # a backend dtype numpy does not know
-        return np.dtype(np.float32)
+    return tensor_dtype(model.inputs[0])
 
 
 def has_speed_head(model: keras.Model) -> bool:

@@ -153,3 +153,27 @@ def test_the_bench_command_drives_with_the_steering_options(tmp_path, tiny_model
     settings = json.loads((out / "bench.json").read_text(encoding="utf-8"))["settings"]
     assert (settings["steering_hold"], settings["steering_filter_s"],
             settings["mirror_average"]) == (0.3, 0.1, True)
+
+
+def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same(
+        tmp_path, tiny_models, monkeypatch):
+    """With enough batches per worker, bench makes the model's checked traces in its own
+    process and hands them to every batch (no Keras import in the workers); a batch drives
+    with them exactly as from the model file. Below the threshold, the workers load the file."""
+    from clonedrive.bench import run as bench_run
+
+    suite_path = tmp_path / "tiny.toml"
+    suite_path.write_text(SUITE, encoding="utf-8")
+    config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=2,
+                         max_seconds=3.0, scenery=False, mirror_average=True)
+    tasks, _ = plan_tasks(load_suite(config.suite), config)
+    models = [task for task in tasks if task["kind"] == "model"]
+    bench_run._add_portable_models(tasks, config, workers=1)  # 1 batch: below the threshold
+    assert all("portable" not in task for task in models)
+    monkeypatch.setattr(bench_run, "PORTABLE_FROM_BATCHES_PER_WORKER", 1)
+    bench_run._add_portable_models(tasks, config, workers=1)
+    (task,) = models
+    assert sorted(task["portable"].traces) == [2, 4]  # 1 and 2 cars, mirrored
+    traced = drive_batch(task)
+    from_file = drive_batch({**task, "portable": None})
+    assert json.dumps(traced, sort_keys=True) == json.dumps(from_file, sort_keys=True)

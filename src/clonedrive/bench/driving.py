@@ -78,9 +78,9 @@ def _drive(episodes: list[Episode], driver, specs: Sequence[EpisodeSpec]) -> lis
 
 def drive_batch(task: dict) -> list[dict]:
     """Drive one batch: ``{"kind": "model", "model": path, "policy_options": {...},
-    "scenery": bool, "episodes": [EpisodeSpec...]}`` (the options are NetworkPolicy's, as
-    :meth:`BenchConfig.policy_options` gives them) or ``{"kind": "expert", "episodes":
-    [...]}``. Returns one result dict per episode, in order."""
+    "scenery": bool, "episodes": [EpisodeSpec...], "portable": traces or None}`` (the options
+    are NetworkPolicy's, as :meth:`BenchConfig.policy_options` gives them) or ``{"kind":
+    "expert", "episodes": [...]}``. Returns one result dict per episode, in order."""
     specs: list[EpisodeSpec] = list(task["episodes"])
     rules = {"max_seconds": task.get("max_seconds")}
     if task["kind"] == "expert":
@@ -89,7 +89,8 @@ def drive_batch(task: dict) -> list[dict]:
                         policy_options=dict(task.get("policy_options", {})),
                         trust=bool(task.get("trust_model", False)),
                         runtime=str(task.get("runtime", "auto")),
-                        scenery=bool(task.get("scenery", True)))
+                        scenery=bool(task.get("scenery", True)),
+                        portable=task.get("portable"))
 
 
 def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> list[Episode]:
@@ -99,11 +100,17 @@ def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> l
 
 def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                  policy_options: dict, scenery: bool, trust: bool = False,
-                 runtime: str = "auto") -> list[dict]:
-    from clonedrive.drivers.network import load_policy
+                 runtime: str = "auto", portable=None) -> list[dict]:
+    """``portable``: the model's checked traces (NetworkPolicy.portable), run by PyTorch alone
+    instead of loading the model file with Keras; the same steering to the last bit."""
+    from clonedrive.drivers.network import NetworkPolicy, load_policy
+    from clonedrive.drivers.traced import TracedModel
     from clonedrive.episode.drivers import NetworkDriver
 
-    policy = load_policy(model_path, trust=trust, runtime=runtime, **policy_options)
+    if portable is not None:
+        policy = NetworkPolicy(TracedModel(portable), **policy_options)
+    else:
+        policy = load_policy(model_path, trust=trust, runtime=runtime, **policy_options)
     import torch
 
     torch.set_num_threads(1)  # results must not depend on how many workers share the cores

@@ -155,6 +155,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         write_json_atomic(out / "bench.json", report)
 
     try:
+        _add_portable_models(tasks, config, workers)
         run_tasks(drive_batch, tasks, workers=workers, ray=config.ray, on_done=on_done)
     finally:
         bar.close()
@@ -230,6 +231,34 @@ def offline_rows(folders: tuple[str, ...]) -> list:
     if not rows:
         raise ValueError(f"no usable rows in {', '.join(folders)}")
     return rows
+
+
+#: A model's batches per worker from which its checked traces are made here first: loading the
+#: model in this process costs about 6.5 s (Keras's import, the model, its traces) and spares
+#: each batch's fresh worker process about 3 s (it imports PyTorch alone).
+PORTABLE_FROM_BATCHES_PER_WORKER = 3
+
+
+def _add_portable_models(tasks: list[dict], config: BenchConfig, workers: int) -> None:
+    """Give each model's batches the model's checked traces (``task["portable"]``, see
+    :meth:`NetworkPolicy.portable`), for the models with enough batches to gain from it; the
+    others' workers load the model file, as do the batches of a model that does not trace."""
+    from clonedrive.drivers.network import load_policy
+
+    counts: dict[str, int] = {}
+    for task in tasks:
+        if task["kind"] == "model":
+            counts[task["model"]] = counts.get(task["model"], 0) + 1
+    for path, count in counts.items():
+        if count < PORTABLE_FROM_BATCHES_PER_WORKER * workers or config.runtime == "onnx" \
+                or Path(path).suffix.lower() == ".onnx":
+            continue
+        policy = load_policy(path, trust=config.trust_model, runtime=config.runtime,
+                             **config.policy_options())
+        portable = policy.portable(config.batch)
+        for task in tasks:
+            if task["kind"] == "model" and task["model"] == path:
+                task["portable"] = portable
 
 
 def offline_mse(model_path: str, rows: list, *, trust: bool = False,

@@ -131,6 +131,14 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
         np.testing.assert_array_equal(speed, want_speed)
     with pytest.raises(ValueError, match=r"no trace for a batch of 5 frames \(traced: \[2, 4, 6\]"):
         TracedModel(portable).predict_on_batch(np.concatenate([real_frames[:5]]))
+    # Predictions go in chunks of batch_size frames, each mirrored: 3 frames as 2 + 1, so 4 + 2
+    # to the network. A worker builds its policy with the same options, so it chunks alike.
+    chunked = NetworkPolicy(model, mirror_average=True, batch_size=2)
+    portable = chunked.portable(3)
+    assert sorted(portable.traces) == [2, 4]
+    worker = NetworkPolicy(TracedModel(portable), **chunked.options())
+    for mine, theirs in zip(worker.predict(frames), chunked.predict(frames), strict=True):
+        np.testing.assert_array_equal(mine, theirs)
 
 
 def test_a_model_that_does_not_trace_exactly_is_not_made_portable(real_frames) -> None:

@@ -206,21 +206,21 @@ class NetworkPolicy:
                 "slow_in_curves": self.slow_in_curves, "curve_gain": self.curve_gain,
                 "min_speed_fraction": self.min_speed_fraction,
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
-                "mirror_average": self.mirror_average}
+                "mirror_average": self.mirror_average, "batch_size": self.batch_size}
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to
-        ``cars`` cars in lock-step (fewer as runs finish; twice as many frames with
-        ``mirror_average``, in chunks of ``batch_size``), for a worker process to run without
+        ``cars`` cars in lock-step (fewer as runs finish; in chunks of ``batch_size`` frames,
+        each twice as many with ``mirror_average``), for a worker process to run without
         Keras (:class:`~clonedrive.drivers.traced.TracedModel`). None where the model does not
         run traced (ONNX Runtime, a model PyTorch cannot trace exactly)."""
         if not isinstance(self.forward, TracedForward):
             return None
         sizes = set()
-        for count in range(1, int(cars) + 1):
-            frames = count * (2 if self.mirror_average else 1)
-            sizes.update([min(frames, self.batch_size), frames % self.batch_size])
-        return self.forward.portable(sorted(size for size in sizes if size > 0))
+        for count in range(1, int(cars) + 1):  # as predict() cuts and _predict() mirrors
+            sizes.update([min(count, self.batch_size), count % self.batch_size])
+        factor = 2 if self.mirror_average else 1
+        return self.forward.portable(sorted(size * factor for size in sizes if size > 0))
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:

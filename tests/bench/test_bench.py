@@ -174,6 +174,10 @@ def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same
     bench_run._add_portable_models(tasks, config, workers=1)
     (task,) = models
     assert sorted(task["portable"].traces) == [2, 4]  # 1 and 2 cars, mirrored
+    import torch
+
+    torch.set_num_threads(2)
     traced = drive_batch(task)
     from_file = drive_batch({**task, "portable": None})
     assert json.dumps(traced, sort_keys=True) == json.dumps(from_file, sort_keys=True)
+    assert torch.get_num_threads() == 2  # a batch drives on one thread, then gives it back

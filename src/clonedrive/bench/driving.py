@@ -106,14 +106,12 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     from clonedrive.drivers.network import NetworkPolicy, load_policy
     from clonedrive.drivers.traced import TracedModel
     from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.keras_backend import compute_threads
 
     if portable is not None:
         policy = NetworkPolicy(TracedModel(portable), **policy_options)
     else:
         policy = load_policy(model_path, trust=trust, runtime=runtime, **policy_options)
-    import torch
-
-    torch.set_num_threads(1)  # results must not depend on how many workers share the cores
     sims = []
     pool = CameraPool()  # the runs on one track in one look share a scene
     try:
@@ -125,7 +123,10 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
         latency = [spec.conditions.latency_steps for spec in specs]
         if any(latency):
             driver = DelayedDriver(driver, latency)
-        return _drive(episodes, driver, specs)
+        # One compute thread: results must not depend on how many workers share the cores. Set
+        # for the drive only, so that a caller's own process keeps its setting.
+        with compute_threads(1):
+            return _drive(episodes, driver, specs)
     finally:
         for sim in sims:
             sim.close()

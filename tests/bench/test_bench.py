@@ -176,8 +176,12 @@ def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same
     assert sorted(task["portable"].traces) == [2, 4]  # 1 and 2 cars, mirrored
     import torch
 
+    before = torch.get_num_threads()
     torch.set_num_threads(2)
-    traced = drive_batch(task)
-    from_file = drive_batch({**task, "portable": None})
+    try:
+        traced = drive_batch(task)
+        from_file = drive_batch({**task, "portable": None})
+        assert torch.get_num_threads() == 2  # a batch drives on one thread, then gives it back
+    finally:
+        torch.set_num_threads(before)
     assert json.dumps(traced, sort_keys=True) == json.dumps(from_file, sort_keys=True)
-    assert torch.get_num_threads() == 2  # a batch drives on one thread, then gives it back

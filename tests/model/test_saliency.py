@@ -111,3 +111,20 @@ def test_a_model_cropping_less_has_masks_from_its_own_top_row() -> None:
     assert not masks[:, :60].any() and masks[:, 60:80].any()
     with pytest.raises(ValueError, match="crop_top_px"):
         build_model("fast", crop_top_px=120)
+
+
+def test_saliency_videos_from_worker_processes_load_the_keras_model(tmp_path) -> None:
+    """Workers normally run the model's traces without Keras; VisualBackProp needs the Keras
+    model, so with --video-saliency they load the model file."""
+    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
+
+    model = build_model("fast", seed=0)
+    model.save(tmp_path / "model.keras")
+    config = EvalConfig(tracks=("lake",), speeds_mph=(15.0, 20.0), laps=1, max_seconds=1.0,
+                        video=True, video_saliency=True, scenery=False,
+                        expert_reference=False, workers=2)
+    report = evaluate(NetworkPolicy(model), config, tmp_path / "out", progress=False,
+                      model_path=str(tmp_path / "model.keras"))
+    assert report["complete"] and len(report["runs"]) == 2
+    assert all((tmp_path / "out" / run["video"]).is_file() for run in report["runs"])

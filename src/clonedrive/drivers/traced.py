@@ -74,7 +74,6 @@ class TracedForward:
             return None
         return trace if _same(got, expected) else None
 
-
     def portable(self, batch_sizes: Sequence[int], *, seed: int = 0) -> PortableModel | None:
         """The model as its checked traces, one per batch size, for a worker process to run
         without importing Keras (:class:`TracedModel`; ``import keras`` costs a fresh process

@@ -190,10 +190,11 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
             order = sorted(range(len(groups)), key=lambda i: -cost[i])
             # Each worker builds a policy that drives as ``policy`` does: from the model's
             # checked traces where it runs traced (no Keras to import: ~3 s less per worker),
-            # else from the model file.
+            # else from the model file (also for saliency videos: they need the Keras model).
             policy_options = policy.options() if hasattr(policy, "options") else {}
-            portable = (policy.portable(max(len(group) for _, group in groups))
-                        if hasattr(policy, "portable") else None)
+            portable = None
+            if hasattr(policy, "portable") and not any(part.video_saliency for part in parts):
+                portable = policy.portable(max(len(group) for _, group in groups))
             tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
                       "policy_options": policy_options, "portable": portable,
                       "group": groups[i][1], "names": names, "config": groups[i][0],

@@ -103,15 +103,12 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                  runtime: str = "auto", portable=None) -> list[dict]:
     """``portable``: the model's checked traces (NetworkPolicy.portable), run by PyTorch alone
     instead of loading the model file with Keras; the same steering to the last bit."""
-    from clonedrive.drivers.network import NetworkPolicy, load_policy
-    from clonedrive.drivers.traced import TracedModel
+    from clonedrive.drivers.network import load_policy
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.keras_backend import compute_threads
 
-    if portable is not None:
-        policy = NetworkPolicy(TracedModel(portable), **policy_options)
-    else:
-        policy = load_policy(model_path, trust=trust, runtime=runtime, **policy_options)
+    policy = load_policy(model_path, trust=trust, runtime=runtime, portable=portable,
+                         **policy_options)
     sims = []
     pool = CameraPool()  # the runs on one track in one look share a scene
     try:

@@ -392,8 +392,15 @@ def load_model(
 
 
 def load_policy(
-    path: str | Path, *, trust: bool = False, runtime: str = "auto", **kwargs: object
+    path: str | Path, *, trust: bool = False, runtime: str = "auto",
+    portable: PortableModel | None = None, **kwargs: object
 ) -> NetworkPolicy:
     """A :class:`NetworkPolicy` for the model file at ``path`` (see :func:`load_model` for
-    ``trust`` and ``runtime``); ``kwargs`` go to its constructor."""
+    ``trust`` and ``runtime``); ``kwargs`` go to its constructor. ``portable``: that model's
+    checked traces (:meth:`NetworkPolicy.portable`), run by PyTorch alone instead of reading
+    the file with Keras (a worker process's start); the same outputs to the last bit."""
+    if portable is not None:
+        from clonedrive.drivers.traced import TracedModel
+
+        return NetworkPolicy(TracedModel(portable), **kwargs)
     return NetworkPolicy(load_model(path, trust=trust, runtime=runtime), **kwargs)

@@ -213,15 +213,12 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
 
 def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
     """A worker's share of an evaluation: load the model, drive the group, return results."""
-    from clonedrive.drivers.network import NetworkPolicy, load_policy
-    from clonedrive.drivers.traced import TracedModel
+    from clonedrive.drivers.network import load_policy
 
     config: EvalConfig = task["config"]
     options = {**task.get("policy_options", {}), "slow_in_curves": config.slow_in_curves}
-    if task.get("portable") is not None:
-        policy = NetworkPolicy(TracedModel(task["portable"]), **options)
-    else:
-        policy = load_policy(task["model_path"], **task["model_options"], **options)
+    policy = load_policy(task["model_path"], **task["model_options"],
+                         portable=task.get("portable"), **options)
     results: list[tuple[int, dict]] = []
     _drive_group(policy, task["group"], task["names"], config, Path(task["out"]), None,
                  lambda index, result: results.append((index, result)))

@@ -74,8 +74,10 @@ def _shared(track: Track) -> Track:
 def _generated(name: str) -> Track:
     version, difficulty, seed = parse_generated_name(name)
     if version == V1_VERSION:
-        return _shared(generate(seed, version=V1_VERSION, name=name))
-    return _shared(generate(seed, version=version, difficulty=difficulty, name=name))
+        track = generate(seed, version=V1_VERSION, name=name)
+    else:
+        track = generate(seed, version=version, difficulty=difficulty, name=name)
+    return _shared(track)
 
 
 @functools.lru_cache(maxsize=16)

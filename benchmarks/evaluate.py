@@ -284,7 +284,7 @@ def main() -> None:
     shared_pairs = [(steady_loop_steps_per_s(policy, 8, 10.0, shared=False),
                      steady_loop_steps_per_s(policy, 8, 10.0, shared=True)) for _ in range(3)]
     shared_scene_speedup = statistics.median(shared / own for own, shared in shared_pairs)
-    # The ceiling the two cores set: rendering while the network runs on the other core.
+    # What sharing the two cores costs the rendering while the network runs on the other one.
     beside_pairs = [render_beside_network(policy) for _ in range(3)]
     beside_ratio = statistics.median(beside / alone for alone, beside in beside_pairs)
     loop_ratio = batched / render_only

@@ -13,6 +13,7 @@ from clonedrive.world.vehicle import (
     VehicleParams,
     VehicleState,
     hold_on_slope_throttle,
+    integrate,
     step,
 )
 
@@ -128,3 +129,25 @@ def test_controls_are_clipped_into_range_and_non_finite_values_become_zero():
     assert Controls(steering=float("nan"), throttle=float("inf"),
                     brake=float("-inf")).clipped() == Controls(0.0, 0.0, 0.0)
     assert Controls(steering=0.5, throttle=float("nan")).clipped() == Controls(0.5, 0.0, 0.0)
+
+
+# Reversing, at rest, kinematic, blended, dynamic, at the top speed.
+@pytest.mark.parametrize("v_x", [-1.5, 0.0, 1.0, 3.5, 9.0, 13.4])
+def test_integrate_gives_the_numbers_of_step_chained(v_x):
+    """A control period in one call (the simulator's 10 physics steps) equals step() called 10
+    times, to the last bit, in every regime: braking through zero, reversing, the top-speed
+    governor, slopes, off the road, NaN steering."""
+    start = VehicleState(x_m=12.5, y_m=-40.0, yaw_rad=3.1, v_x_mps=v_x, v_y_mps=0.2 * v_x / 9,
+                         r_radps=-0.05)
+    controls = [Controls(), Controls(steering=0.4, throttle=0.6),
+                Controls(steering=-1.0, brake=1.0), Controls(steering=0.2, throttle=-1.0),
+                Controls(steering=float("nan"), throttle=1.0),
+                Controls(steering=-0.7, throttle=0.3, brake=0.2)]
+    roads = [RoadContact(), RoadContact(grade=0.12, front_on_road=0.5, rear_on_road=1.0),
+             RoadContact(grade=-0.08, front_on_road=0.0, rear_on_road=0.0)]
+    for control in controls:
+        for road in roads:
+            chained = start
+            for _ in range(10):
+                chained = step(chained, control, DT, PARAMS, road)
+            assert integrate(start, control, DT, PARAMS, road, 10) == chained, (control, road)

@@ -32,9 +32,9 @@ from clonedrive.world.vehicle import (
     RoadContact,
     VehicleParams,
     VehicleState,
+    integrate,
     tyre_positions,
 )
-from clonedrive.world.vehicle import step as vehicle_step
 
 if TYPE_CHECKING:
     from clonedrive.sim.camera_pool import CameraPool
@@ -245,10 +245,8 @@ class Simulator:
 
     def _integrate(self, controls: Controls) -> None:
         """Physics sub-steps for one control period; time and distance advance."""
-        road = self._road_contact()
-        state = self._state
-        for _ in range(self._substeps):
-            state = vehicle_step(state, controls, self._dt_s, self.params, road)
+        state = integrate(self._state, controls, self._dt_s, self.params, self._road_contact(),
+                          self._substeps)
         self._distance_m += math.hypot(state.x_m - self._state.x_m, state.y_m - self._state.y_m)
         self._state = state
         self._controls = controls

@@ -147,65 +147,83 @@ def step(state: VehicleState, controls: Controls, dt_s: float, params: VehiclePa
          road: RoadContact | None = None) -> VehicleState:
     """Advance the car by ``dt_s`` seconds (semi-implicit Euler). ``controls`` are clipped;
     ``road`` defaults to level asphalt."""
+    return integrate(state, controls, dt_s, params, road)
+
+
+def integrate(state: VehicleState, controls: Controls, dt_s: float, params: VehicleParams,
+              road: RoadContact | None = None, substeps: int = 1) -> VehicleState:
+    """``substeps`` steps of ``dt_s`` seconds each under the same controls and road contact:
+    the same numbers as :func:`step` called ``substeps`` times (every sum and product in the
+    same order), with what stays the same over the steps worked out once and the state kept in
+    plain floats in between (a control period of the simulator is 10 of them)."""
     controls = controls.clipped()
     road = road if road is not None else RoadContact()
     p = params
+    throttle, brake = controls.throttle, controls.brake
     delta = -controls.steering * p.max_wheel_angle_rad  # steering + = right = negative angle
     grip_f = 1.0 - (1.0 - p.off_road_grip) * (1.0 - road.front_on_road)
     grip_r = 1.0 - (1.0 - p.off_road_grip) * (1.0 - road.rear_on_road)
     on_road = 0.5 * (road.front_on_road + road.rear_on_road)
     c_rr = p.c_rr * (1.0 + (p.off_road_rolling - 1.0) * (1.0 - on_road))
-
-    v_x, v_y, r = state.v_x_mps, state.v_y_mps, state.r_radps
     cos_slope = 1.0 / math.sqrt(1.0 + road.grade * road.grade)
     sin_slope = road.grade * cos_slope
     normal_n = p.m * GRAVITY_MPS2 * cos_slope
-
-    # Longitudinal: drive/brake, rolling resistance, aerodynamic drag, gravity along the slope.
-    f_x = longitudinal_force(v_x, controls, p)
-    f_x -= _smooth_sign(v_x) * c_rr * normal_n
-    f_x -= 0.5 * AIR_DENSITY_KGPM3 * p.c_d_a_m2 * v_x * abs(v_x)
-    f_x -= p.m * GRAVITY_MPS2 * sin_slope
-    if controls.brake > 0.0 or (controls.throttle < 0.0 and v_x > p.reverse_below_mps):
-        # Brakes stop the car; they never push it backwards through zero.
-        new_v_x = v_x + f_x / p.m * dt_s
-        if v_x > 0.0 > new_v_x or v_x < 0.0 < new_v_x:
-            new_v_x = 0.0
-    else:
-        new_v_x = v_x + f_x / p.m * dt_s
-    if new_v_x > p.top_speed_mps and f_x > 0.0:
-        new_v_x = max(v_x, p.top_speed_mps)
-
-    # Lateral: dynamic single-track model with linear tyres, saturated at mu * load.
-    speed = abs(v_x)
-    weight = min(max((speed - p.kinematic_below_mps)
-                     / (p.dynamic_above_mps - p.kinematic_below_mps), 0.0), 1.0)
-    if weight > 0.0:
-        alpha_f = delta - math.atan2(v_y + p.l_f * r, speed) * math.copysign(1.0, v_x)
-        alpha_r = -math.atan2(v_y - p.l_r * r, speed) * math.copysign(1.0, v_x)
-        load_f = normal_n * p.l_r / p.wheelbase_m
-        load_r = normal_n * p.l_f / p.wheelbase_m
-        f_yf = _saturate(p.C_f * grip_f * alpha_f, p.mu * grip_f * load_f)
-        f_yr = _saturate(p.C_r * grip_r * alpha_r, p.mu * grip_r * load_r)
-        dyn_v_y = v_y + ((f_yf * math.cos(delta) + f_yr) / p.m - v_x * r) * dt_s
-        dyn_r = r + (p.l_f * f_yf * math.cos(delta) - p.l_r * f_yr) / p.I_z * dt_s
-    else:
-        dyn_v_y, dyn_r = 0.0, 0.0
-    # Kinematic model (no slip): yaw rate from the wheel angle, lateral speed at the CG.
-    kin_r = new_v_x * math.tan(delta) / p.wheelbase_m
-    kin_v_y = kin_r * p.l_r
-    new_v_y = weight * dyn_v_y + (1.0 - weight) * kin_v_y
-    new_r = weight * dyn_r + (1.0 - weight) * kin_r
-
-    # Pose from the new velocities (semi-implicit Euler).
-    yaw = state.yaw_rad + new_r * dt_s
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    # Constant over the steps; each is the leading part of a product in the step below.
+    mass, drag, gravity = p.m, 0.5 * AIR_DENSITY_KGPM3 * p.c_d_a_m2, p.m * GRAVITY_MPS2 * sin_slope
+    wheelbase, l_f, l_r, yaw_inertia = p.wheelbase_m, p.l_f, p.l_r, p.I_z
+    blend_low, blend_span = p.kinematic_below_mps, p.dynamic_above_mps - p.kinematic_below_mps
+    cos_delta, tan_delta = math.cos(delta), math.tan(delta)
+    load_f = normal_n * p.l_r / wheelbase
+    load_r = normal_n * p.l_f / wheelbase
+    stiffness_f, stiffness_r = p.C_f * grip_f, p.C_r * grip_r
+    limit_f, limit_r = p.mu * grip_f * load_f, p.mu * grip_r * load_r
+    top, reverse_below = p.top_speed_mps, p.reverse_below_mps
     horizontal = cos_slope  # travel along a slope covers less ground
-    x = state.x_m + (new_v_x * cos_yaw - new_v_y * sin_yaw) * horizontal * dt_s
-    y = state.y_m + (new_v_x * sin_yaw + new_v_y * cos_yaw) * horizontal * dt_s
-    yaw = math.remainder(yaw, 2.0 * math.pi)
-    return VehicleState(x_m=x, y_m=y, yaw_rad=yaw, v_x_mps=new_v_x, v_y_mps=new_v_y,
-                        r_radps=new_r, wheel_angle_rad=delta)
+    x, y, yaw = state.x_m, state.y_m, state.yaw_rad
+    v_x, v_y, r = state.v_x_mps, state.v_y_mps, state.r_radps
+    for _ in range(substeps):
+        # Longitudinal: drive/brake, rolling resistance, aerodynamic drag, gravity along the
+        # slope.
+        f_x = longitudinal_force(v_x, controls, p)
+        f_x -= _smooth_sign(v_x) * c_rr * normal_n
+        f_x -= drag * v_x * abs(v_x)
+        f_x -= gravity
+        new_v_x = v_x + f_x / mass * dt_s
+        if brake > 0.0 or (throttle < 0.0 and v_x > reverse_below):
+            # Brakes stop the car; they never push it backwards through zero.
+            if v_x > 0.0 > new_v_x or v_x < 0.0 < new_v_x:
+                new_v_x = 0.0
+        if new_v_x > top and f_x > 0.0:
+            new_v_x = max(v_x, top)
+
+        # Lateral: dynamic single-track model with linear tyres, saturated at mu * load.
+        speed = abs(v_x)
+        weight = min(max((speed - blend_low) / blend_span, 0.0), 1.0)
+        if weight > 0.0:
+            sign = math.copysign(1.0, v_x)
+            alpha_f = delta - math.atan2(v_y + l_f * r, speed) * sign
+            alpha_r = -math.atan2(v_y - l_r * r, speed) * sign
+            f_yf = _saturate(stiffness_f * alpha_f, limit_f)
+            f_yr = _saturate(stiffness_r * alpha_r, limit_r)
+            dyn_v_y = v_y + ((f_yf * cos_delta + f_yr) / mass - v_x * r) * dt_s
+            dyn_r = r + (l_f * f_yf * cos_delta - l_r * f_yr) / yaw_inertia * dt_s
+        else:
+            dyn_v_y, dyn_r = 0.0, 0.0
+        # Kinematic model (no slip): yaw rate from the wheel angle, lateral speed at the CG.
+        kin_r = new_v_x * tan_delta / wheelbase
+        kin_v_y = kin_r * l_r
+        v_y = weight * dyn_v_y + (1.0 - weight) * kin_v_y
+        r = weight * dyn_r + (1.0 - weight) * kin_r
+        v_x = new_v_x
+
+        # Pose from the new velocities (semi-implicit Euler).
+        yaw = yaw + r * dt_s
+        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+        x = x + (v_x * cos_yaw - v_y * sin_yaw) * horizontal * dt_s
+        y = y + (v_x * sin_yaw + v_y * cos_yaw) * horizontal * dt_s
+        yaw = math.remainder(yaw, 2.0 * math.pi)
+    return VehicleState(x_m=x, y_m=y, yaw_rad=yaw, v_x_mps=v_x, v_y_mps=v_y, r_radps=r,
+                        wheel_angle_rad=delta)
 
 
 def _saturate(force: float, limit: float) -> float:

@@ -151,3 +151,8 @@ def test_integrate_gives_the_numbers_of_step_chained(v_x):
             for _ in range(10):
                 chained = step(chained, control, DT, PARAMS, road)
             assert integrate(start, control, DT, PARAMS, road, 10) == chained, (control, road)
+
+
+def test_integrate_refuses_fewer_than_one_step():
+    with pytest.raises(ValueError, match="substeps"):
+        integrate(VehicleState(), Controls(), DT, PARAMS, None, 0)

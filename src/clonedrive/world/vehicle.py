@@ -156,6 +156,8 @@ def integrate(state: VehicleState, controls: Controls, dt_s: float, params: Vehi
     the same numbers as :func:`step` called ``substeps`` times (every sum and product in the
     same order), with what stays the same over the steps worked out once and the state kept in
     plain floats in between (a control period of the simulator is 10 of them)."""
+    if substeps < 1:
+        raise ValueError(f"substeps must be at least 1, got {substeps}")
     controls = controls.clipped()
     road = road if road is not None else RoadContact()
     p = params

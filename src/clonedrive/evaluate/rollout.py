@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,6 +35,9 @@ from clonedrive.evaluate.reference import against_expert
 from clonedrive.paths import safe_stem
 from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS
+
+if TYPE_CHECKING:
+    from clonedrive.sim.camera_pool import CameraPool
 
 
 @dataclass
@@ -249,7 +253,7 @@ def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
 
 
 def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path,
-              pool) -> _Run:
+              pool: CameraPool) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery),

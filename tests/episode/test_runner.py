@@ -309,3 +309,78 @@ def test_per_car_drivers_and_wrong_answers():
             Runner([episode], PerCar([Silent()])).step()
     with pytest.raises(ValueError, match="at least one episode"):
         Runner([], PerCar([]))
+
+
+def test_cars_stepped_phase_by_phase_on_one_scene_see_what_they_see_alone():
+    """The runner moves every car, then draws every car's frame, then finishes every car's step.
+    With cameras on a shared scene (one rig draws all the cars in turn), each car's frames,
+    interventions and trace are still exactly what it gets when driven alone on its own scene."""
+    from clonedrive.sim.camera_pool import CameraPool
+
+    config = SimConfig(cameras=("center",), image_width=64, image_height=32)
+    limits = (2.0, 1.4, 1.8)
+    options = ({"s_m": 0.0, "speed_mph": 20.0}, {"s_m": 30.0, "speed_mph": 20.0},
+               {"s_m": 60.0, "offset_m": 1.0, "speed_mph": 20.0})
+
+    def keeper(car: int):
+        return Swerver(20.0, period_s=1.2) if car != 1 else LaneKeeper(20.0)
+
+    def run_together():
+        frames: dict[int, list] = {car: [] for car in range(len(limits))}
+        with CameraPool() as pool:
+            sims = [Simulator("lake", config, pool=pool) for _ in limits]
+            try:
+                episodes = [Episode(sim, EpisodeRules(set_speed_mph=20.0, max_seconds=limit),
+                                    options=option)
+                            for sim, limit, option in zip(sims, limits, options, strict=True)]
+                Runner(episodes, PerCar([keeper(car) for car in range(len(limits))])).run(
+                    lambda step: frames[step.car].append(step.observed.images["center"]))
+                assert pool.scenes == 1
+                return frames, [episode.trace.summary() for episode in episodes], \
+                    [episode.interventions for episode in episodes]
+            finally:
+                for sim in sims:
+                    sim.close()
+
+    frames, summaries, interventions = run_together()
+    assert interventions[0] > 0  # the swervers leave the road: interventions render too
+    for car, (limit, option) in enumerate(zip(limits, options, strict=True)):
+        steps: list = []
+        with Simulator("lake", config) as sim:
+            episode = Episode(sim, EpisodeRules(set_speed_mph=20.0, max_seconds=limit),
+                              options=option)
+            drive(episode, keeper(car), on_step=steps.append)
+            alone = [step.observed.images["center"] for step in steps]
+            assert episode.trace.summary() == summaries[car]
+            assert episode.interventions == interventions[car]
+        assert len(alone) == len(frames[car]) == round(limit * 15)
+        assert all(np.array_equal(a, b) for a, b in zip(alone, frames[car], strict=True))
+
+
+def test_a_step_in_parts_is_the_step_and_the_parts_keep_their_order():
+    with Simulator("lake", STATE_ONLY) as whole, Simulator("lake", STATE_ONLY) as parts:
+        whole.reset(seed=0)
+        parts.reset(seed=0)
+        controls = Controls(steering=0.1, throttle=0.5)
+        with pytest.raises(RuntimeError, match="advance"):
+            parts.render_advanced()
+        parts.advance(controls)
+        with pytest.raises(RuntimeError, match="already advanced"):
+            parts.advance(controls)
+        with pytest.raises(RuntimeError, match="middle of a step"):
+            parts.intervene(20.0)
+        assert parts.observation.time_s == 0.0  # the observation waits for the finish
+        assert parts.finish_step() == whole.step(controls)
+        with pytest.raises(RuntimeError, match="advance"):
+            parts.finish_step()
+    episode = Episode(Simulator("lake", STATE_ONLY), EpisodeRules(max_seconds=1.0))
+    try:
+        episode.reset()
+        with pytest.raises(RuntimeError, match="begin"):
+            episode.finish()
+        episode.begin(Controls(throttle=0.3))
+        with pytest.raises(RuntimeError, match="begun already"):
+            episode.begin(Controls(throttle=0.3))
+        assert episode.finish().observed.time_s == pytest.approx(1 / 15)
+    finally:
+        episode.sim.close()

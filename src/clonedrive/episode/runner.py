@@ -35,7 +35,10 @@ the expert's steering::
 The order of one car's step is fixed: the driver (and labeller) decide from the current
 observation -> the simulator steps -> the step is traced -> each off-road event is traced and,
 under ``off_road="intervene"``, answered by an intervention (the drivers are told, e.g. to reset a
-speed controller) -> the stop rules are checked.
+speed controller) -> the stop rules are checked. A runner takes its cars through a step phase
+by phase (:meth:`Episode.begin`: every car moves; :meth:`Episode.render`: every car's cameras
+draw; :meth:`Episode.finish`: the rest of every car's step), which gives each car the step it
+would have alone.
 
 ``Runner(..., overlap=True)`` keeps that order for every car but uses a second core: the cars
 are split into two fixed halves (even and odd numbers), and while one half's simulators step
@@ -172,6 +175,7 @@ class Episode:
         self.stopped: Stop | None = None
         self.interventions = 0
         self._obs: SimObservation | None = None
+        self._begun: tuple[Decision, Decision | None] | None = None  # (decision, label)
 
     # ------------------------------------------------------------------ state
     @property
@@ -194,6 +198,7 @@ class Episode:
     def reset(self) -> SimObservation:
         """Start (or restart) the episode: place the car, start a new trace."""
         self._obs, _ = self.sim.reset(seed=self.seed, options=self.options)
+        self._begun = None
         self.stopped = None
         self.interventions = 0
         self.trace = None
@@ -204,12 +209,35 @@ class Episode:
         return self._obs
 
     def step(self, decision: Decision | Controls, label: Decision | None = None) -> Step:
-        """Apply ``decision`` for one control period and apply the rules (see the module)."""
+        """Apply ``decision`` for one control period and apply the rules (see the module).
+
+        The same as :meth:`begin`, :meth:`render` and :meth:`finish` in turn (the runner
+        calls those phase by phase for all its cars)."""
+        self.begin(decision, label)
+        self.render()
+        return self.finish()
+
+    def begin(self, decision: Decision | Controls, label: Decision | None = None) -> None:
+        """The first part of :meth:`step`: the car moves (:meth:`Simulator.advance`)."""
         if self.stopped is not None:
             raise RuntimeError(f"the episode has stopped ({self.stopped}): reset() it first")
+        if self._begun is not None:
+            raise RuntimeError("the step has begun already: finish() it first")
         decision = as_decision(decision)
+        self.sim.advance(decision.controls)
+        self._begun = (decision, label)
+
+    def render(self) -> None:
+        """The second part of :meth:`step`: the cameras draw the car's new place."""
+        self.sim.render_advanced()
+
+    def finish(self) -> Step:
+        """The last part of :meth:`step`: observe, trace, intervene, check the rules."""
+        if self._begun is None:
+            raise RuntimeError("no step has begun: call begin() first")
+        (decision, label), self._begun = self._begun, None
         seen = self.observation
-        observed, info = self.sim.step(decision.controls)
+        observed, info = self.sim.finish_step()
         events = tuple(info["events"])
         trace = self.trace
         if trace is not None:
@@ -313,20 +341,20 @@ class Runner:
         if not (self.overlap and first and second):
             decided = self._take_pending(cars)
             decided.update(self._decide([car for car in cars if car not in decided]))
-            return [self._step_car(car, *decided[car]) for car in cars]
+            return self._step_cars(cars, decided)
         decided = self._take_pending(first)
         decided.update(self._decide([car for car in first if car not in decided]))
         pool = self._pool or ThreadPoolExecutor(1, thread_name_prefix="runner-decide")
         self._pool = pool
         ahead = pool.submit(self._decide, second)
         try:
-            steps = [self._step_car(car, *decided[car]) for car in first]
+            steps = self._step_cars(first, decided)
         finally:
             decided = ahead.result()  # never leave the helper deciding unseen
         still = [car for car in first if not self.episodes[car].done]
         if still:  # the first half's next decisions, made while the second half steps
             self._pending = pool.submit(self._decide, still)
-        steps += [self._step_car(car, *decided[car]) for car in second]
+        steps += self._step_cars(second, decided)
         return sorted(steps, key=lambda step: step.car)
 
     def _decide(self, cars: list[int]) -> dict[int, tuple[Decision, Decision | None]]:
@@ -341,9 +369,25 @@ class Runner:
         return {car: (decision, label)
                 for car, decision, label in zip(cars, decisions, labels, strict=True)}
 
-    def _step_car(self, car: int, decision: Decision, label: Decision | None) -> Step:
+    def _step_cars(self, cars: list[int], decided: dict[int, tuple[Decision, Decision | None]]
+                   ) -> list[Step]:
+        """One step of each of ``cars``, phase by phase: every car moves, then every car's
+        cameras draw, then every car's step is finished (each car's step is what it is alone:
+        the cars do not meet). The Python of the physics and of the rules then runs together
+        instead of between frames, where the renderer has just pushed it out of the CPU's
+        caches. Measured on 2 cores, medians of alternating pairs against one car at a time:
+        8 cars without a network 1.06x (8 pairs), the steady loop of evaluate's 8 cars with
+        the network beside it 1.03x (6 pairs), a whole evaluation of them 1.14x (6 pairs,
+        0.87-1.21: this machine's noise)."""
+        for car in cars:
+            self.episodes[car].begin(*decided[car])
+        for car in cars:
+            self.episodes[car].render()
+        return [self._finish_car(car) for car in cars]
+
+    def _finish_car(self, car: int) -> Step:
         episode = self.episodes[car]
-        step = episode.step(decision, label)
+        step = episode.finish()
         if step.intervened:
             self.driver.intervened(car, episode.observation)
             if self.labeller is not None:

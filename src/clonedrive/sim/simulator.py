@@ -144,6 +144,9 @@ class Simulator:
         self._controls = Controls()
         self._reverse = False
         self._direction = 1.0
+        #: A step begun by :meth:`advance`: the car's new pose, and its frames once rendered.
+        self._advanced: _Pose | None = None
+        self._advanced_images: dict | None = None
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> Simulator:
@@ -194,6 +197,7 @@ class Simulator:
         self._time_s = 0.0
         self._distance_m = 0.0
         self._controls = Controls()
+        self._advanced = self._advanced_images = None
         pose = self._pose()
         self._laps.restart(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
         self._obs = self._observation(pose, self._render(pose))
@@ -201,14 +205,40 @@ class Simulator:
 
     def step(self, controls: Controls) -> tuple[SimObservation, dict]:
         """One control period: clip the controls, integrate the physics, find the car's pose on
-        the track, render the cameras there, count laps and off-road events, observe."""
+        the track, render the cameras there, count laps and off-road events, observe.
+
+        The same as :meth:`advance`, :meth:`render_advanced` and :meth:`finish_step` in turn:
+        the episode runner calls those for all its cars phase by phase (every car's physics,
+        then every car's frames, then the rest), which gives each car the same step."""
+        self.advance(controls)
+        self.render_advanced()
+        return self.finish_step()
+
+    def advance(self, controls: Controls) -> None:
+        """The first part of :meth:`step`: clip the controls, integrate the physics and find
+        the car's new pose on the track. Time and distance advance; the observation stays the
+        last one until :meth:`finish_step`."""
         if self._obs is None:
             raise RuntimeError("Simulator.step() before reset(): call reset() to place the car "
                                "on the track first")
-        controls = controls.clipped()
-        self._integrate(controls)
-        pose = self._pose()
-        images = self._render(pose)
+        if self._advanced is not None:
+            raise RuntimeError("the step is already advanced: call finish_step() first")
+        self._integrate(controls.clipped())
+        self._advanced = self._pose()
+
+    def render_advanced(self) -> None:
+        """The second part of :meth:`step`: render the cameras at the advanced pose."""
+        if self._advanced is None:
+            raise RuntimeError("nothing to render: call advance() first")
+        if self._advanced_images is None:
+            self._advanced_images = self._render(self._advanced)
+
+    def finish_step(self) -> tuple[SimObservation, dict]:
+        """The last part of :meth:`step` (rendering first if :meth:`render_advanced` was not
+        called): count laps and off-road events, observe. Returns what :meth:`step` returns."""
+        self.render_advanced()
+        pose, images = self._advanced, self._advanced_images
+        self._advanced = self._advanced_images = None
         lap = self._count(pose)
         self._obs = self._observation(pose, images)
         events = [lap.event] if lap.event is not None else []
@@ -220,6 +250,8 @@ class Simulator:
         :mod:`clonedrive.episode`, decides when and at what speed: DESIGN.md's intervention.)"""
         if self._obs is None:
             raise RuntimeError("Simulator.intervene() before reset(): call reset() first")
+        if self._advanced is not None:
+            raise RuntimeError("Simulator.intervene() in the middle of a step: finish it first")
         self._place(self._obs.s_m, 0.0, speed_mph, 0.0)
         pose = self._pose()
         self._laps.placed(self._s_dir(pose), off_road=not all(pose.tyres_on_road))

@@ -156,3 +156,13 @@ def test_a_model_that_does_not_trace_exactly_is_not_made_portable(real_frames) -
     from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
 
     assert NetworkPolicy(OnnxModel(onnx_bytes(build_model("fast", seed=1)))).portable(2) is None
+
+
+def test_a_size_this_process_does_not_run_traced_is_not_made_portable(real_frames) -> None:
+    """Where this process found a batch size not to trace exactly (and so predicts it with
+    Keras), the workers must not get a trace for it that passed on other frames: they would
+    steer differently from an evaluation in this process."""
+    policy = NetworkPolicy(build_model("fast", seed=1))
+    policy.forward._traces[(2, *real_frames.shape[1:])] = None  # found not exact on its frames
+    assert policy.portable(2) is None
+    assert NetworkPolicy(build_model("fast", seed=1)).portable(2) is not None

@@ -79,8 +79,9 @@ class TracedForward:
         without importing Keras (:class:`TracedModel`; ``import keras`` costs a fresh process
         about 5.4 s on the development machine, ``import torch`` alone 2.2 s). Each trace is
         checked against ``predict_on_batch`` on a batch of random frames first, as in
-        :meth:`__call__`. None if any size cannot be traced exactly: the worker then loads the
-        model file as before."""
+        :meth:`__call__`; a size that :meth:`__call__` already found not to trace exactly is
+        not tried again. None if any size cannot be traced exactly: the worker then loads the
+        model file as before (and so drives as this process does)."""
         import torch
 
         images = np.random.default_rng(seed).integers(
@@ -89,13 +90,14 @@ class TracedForward:
         traces = {}
         for size in sorted(set(int(size) for size in batch_sizes)):
             batch = images[:size]
-            trace = self._traces.get(batch.shape)
-            if trace is None:
+            if batch.shape in self._traces:
+                trace = self._traces[batch.shape]
+            else:
                 trace = self._checked_trace(batch, self.model.predict_on_batch(batch))
-                if trace is None:
-                    return None
                 if len(self._traces) < MAX_TRACES:
                     self._traces[batch.shape] = trace
+            if trace is None:  # this process predicts that size without the trace
+                return None
             buffer = io.BytesIO()
             torch.jit.save(trace, buffer)
             traces[size] = buffer.getvalue()

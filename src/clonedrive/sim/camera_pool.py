@@ -73,14 +73,14 @@ class CameraPool:
         """The simulator is done with ``rig``; its scene closes when no one else uses it."""
         if rig in self._private:
             self._private.remove(rig)
-            _close_rig(rig)
+            close_rig(rig)
             return
         for key, entry in list(self._lent.items()):
             if entry[0] is rig:
                 entry[1] -= 1
                 if entry[1] <= 0:
                     del self._lent[key]
-                    _close_rig(rig)
+                    close_rig(rig)
                 return
 
     @property
@@ -91,9 +91,9 @@ class CameraPool:
     def close(self) -> None:
         """Close every scene still open. Safe to call twice."""
         for rig, _ in self._lent.values():
-            _close_rig(rig)
+            close_rig(rig)
         for rig in self._private:
-            _close_rig(rig)
+            close_rig(rig)
         self._lent.clear()
         self._private.clear()
         self.closed = True
@@ -120,7 +120,8 @@ def build_rig(track: Track, config, seed: int) -> CameraRig:
         raise
 
 
-def _close_rig(rig: CameraRig) -> None:
+def close_rig(rig: CameraRig) -> None:
+    """Close a rig made by :func:`build_rig` and its scene."""
     scene = rig.scene
     rig.close()
     scene.close()

@@ -133,7 +133,6 @@ class Simulator:
         self.params = self.config.vehicle
         self._substeps = int(round(self.config.physics_hz / self.config.control_hz))
         self._dt_s = 1.0 / self.config.physics_hz
-        self._scene = None
         self._rig = None
         self._state = VehicleState()
         self._obs: SimObservation | None = None  # None until reset()
@@ -160,10 +159,10 @@ class Simulator:
         if self._rig is not None and self.pool is not None:
             self.pool.give_back(self._rig)
         elif self._rig is not None:
-            self._rig.close()
-            self._scene.close()
+            from clonedrive.sim.camera_pool import close_rig
+
+            close_rig(self._rig)
         self._rig = None
-        self._scene = None
 
     def _open_cameras(self, seed: int) -> None:
         from clonedrive.sim.camera_pool import build_rig
@@ -172,7 +171,6 @@ class Simulator:
             self._rig = self.pool.open(self.track, self.config, seed)
         else:
             self._rig = build_rig(self.track, self.config, seed)
-        self._scene = self._rig.scene
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None
@@ -186,7 +184,7 @@ class Simulator:
         if unknown:
             raise ValueError(
                 f"unknown reset option(s) {sorted(unknown)}; allowed {sorted(allowed)}")
-        if self.config.cameras and self._scene is None:
+        if self.config.cameras and self._rig is None:
             self._open_cameras(seed if seed is not None else 0)
         self._reverse = bool(options.get("reverse", False))
         self._direction = -1.0 if self._reverse else 1.0

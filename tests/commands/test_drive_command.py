@@ -22,6 +22,21 @@ def test_missing_model_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFi
     assert "nothing.keras" in capsys.readouterr().err
 
 
+def test_busy_port_is_named_before_the_model_loads(tiny_model_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    """A port another program holds is reported with the fix, and no model is loaded for it."""
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as holder:
+        port = holder.getsockname()[1]
+        # The model does not exist: had it been loaded first, the error would name the file.
+        missing = tiny_model_path.parent / "absent.keras"
+        assert main(["drive", str(missing), "--port", str(port)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"clonedrive drive: port {port} on 127.0.0.1 is already in use")
+    assert "--port" in err and "absent.keras" not in err
+
+
 def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["drive", str(tmp_path / "m.keras"), "--speed", "80"]) == 2
     assert "--speed" in capsys.readouterr().err

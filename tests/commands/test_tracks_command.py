@@ -56,7 +56,7 @@ def test_the_camera_strip_shows_three_cameras_at_each_place(capsys, tmp_path):
 
 def test_bad_input_is_one_clear_line(capsys, tmp_path):
     code, _, err = run(capsys, "tracks", "--track", "nowhere", "--no-images")
-    assert code == 2 and err.startswith("error: ") and "nowhere" in err
+    assert code == 2 and err.startswith("clonedrive tracks: ") and "nowhere" in err
     assert len(err.strip().splitlines()) == 1
     a_file = tmp_path / "maps.png"
     a_file.write_text("not a folder")

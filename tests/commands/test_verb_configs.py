@@ -59,5 +59,5 @@ def test_a_bad_option_is_one_line_and_status_2(argv, tmp_path, capsys):
     argv = [str(tmp_path) if arg in ("FOLDER", "RUN") else arg for arg in argv]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"clonedrive {argv[0]}: ") and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []  # nothing written

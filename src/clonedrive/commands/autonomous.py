@@ -52,7 +52,7 @@ def run(args) -> int:
     try:
         load_track(args.track)
     except TrackError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive autonomous: {error}", file=sys.stderr)
         return 2
     try:
         config = AutonomousConfig(track=args.track, laps=args.laps, speed_mph=args.speed,
@@ -61,12 +61,12 @@ def run(args) -> int:
                                   client=ClientConfig(host=args.host, port=args.port,
                                                       connect_timeout_s=args.connect_timeout))
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive autonomous: {error}", file=sys.stderr)
         return 2
     try:
         summary = drive_autonomous(config, progress=not args.json)
     except DriveServerError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive autonomous: {error}", file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps(summary, indent=2))

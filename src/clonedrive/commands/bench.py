@@ -69,7 +69,7 @@ def run(args) -> int:
         check_output_folder(args.out)
         report = bench(config, args.out, progress=not args.json)
     except (SuiteError, ValueError, FileNotFoundError, RuntimeError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive bench: {error}", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(report, indent=2))

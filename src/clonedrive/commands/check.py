@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(format_summary(log, summary))
     for warning in log.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(f"clonedrive check: warning: {warning}", file=sys.stderr)
     return 0
 
 

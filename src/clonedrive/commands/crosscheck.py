@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = CrosscheckConfig(smoothing_frames=args.smooth, max_rows=args.max_rows)
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive crosscheck: {error}", file=sys.stderr)
         return 2
     log_dir = Path(args.log_dir)
     out = Path(args.out) if args.out else (
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         report = crosscheck(policy, log_dir, out, config, model_path=str(args.model),
                             progress=not args.json)
     except (FileNotFoundError, ValueError, DrivingLogError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive crosscheck: {error}", file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps(report, indent=2))

@@ -45,7 +45,7 @@ def run(args) -> int:
                             model=args.model, video=args.video, seed=args.seed,
                             workers=args.workers)
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive demo: {error}", file=sys.stderr)
         return 2
     summary = run_demo(config, args.out)
     stages = ", ".join(f"{name} {stage['seconds']:.0f} s"

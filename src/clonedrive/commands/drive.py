@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
+import socket
 import sys
 
 from clonedrive.commands.model_options import (
@@ -69,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # our own lines say enough
     if not 0 <= args.speed <= 30:  # also nan
-        print(f"error: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
+        print(f"clonedrive drive: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
         return 2
     try:
         config = DriveServerConfig(
@@ -78,9 +80,13 @@ def run(args: argparse.Namespace) -> int:
             idle_timeout_s=args.idle_timeout, allowed_origins=tuple(args.allow_origin),
             allowed_hosts=tuple(args.allow_host), image_folder_max_mb=args.image_folder_max_mb)
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive drive: {error}", file=sys.stderr)
         return 2
 
+    busy = _port_problem(args.host, args.port)
+    if busy:  # checked before the model loads, which takes seconds
+        print(f"clonedrive drive: {busy}", file=sys.stderr)
+        return 1
     from clonedrive.udacity.server import DriveServer
 
     try:
@@ -88,17 +94,17 @@ def run(args: argparse.Namespace) -> int:
             args, args.model, set_speed_mph=args.speed, slow_in_curves=args.slow_in_curves
         )
     except (FileNotFoundError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive drive: {error}", file=sys.stderr)
         return 1
     server = DriveServer(policy, config)
     try:
         server.serve_forever()
     except ValueError as error:  # the image folder cannot be written
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive drive: {error}", file=sys.stderr)
         return 1
     except OSError as error:
-        print(f"error: cannot listen on {args.host}:{args.port}: {error.strerror or error}",
-              file=sys.stderr)
+        print(f"clonedrive drive: cannot listen on {args.host}:{args.port}: "
+              f"{error.strerror or error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         pass
@@ -111,3 +117,15 @@ def run(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     return 0
+
+
+def _port_problem(host: str, port: int) -> str | None:
+    """Why the server could not listen on ``host:port``, with the fix, or None if it can."""
+    try:
+        with socket.create_server((host, port), reuse_port=False):
+            return None
+    except OSError as error:
+        if error.errno == errno.EADDRINUSE:
+            return (f"port {port} on {host} is already in use (another drive server or "
+                    f"simulator?); choose another with --port, e.g. --port {port + 1}")
+        return f"cannot listen on {host}:{port}: {error.strerror or error}"

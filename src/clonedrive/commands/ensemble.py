@@ -37,10 +37,11 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     if out.suffix.lower() != ".keras":
-        print(f"error: --out {out}: the file name must end in .keras", file=sys.stderr)
+        print(f"clonedrive ensemble: --out {out}: the file name must end in .keras",
+              file=sys.stderr)
         return 2
     if any(Path(path).suffix.lower() == ".onnx" for path in args.models):
-        print("error: ONNX files cannot be combined; give the .keras or .h5 files",
+        print("clonedrive ensemble: ONNX files cannot be combined; give the .keras or .h5 files",
               file=sys.stderr)
         return 2
     try:
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
         ensemble = build_ensemble(members)
     except (FileNotFoundError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive ensemble: {error}", file=sys.stderr)
         return 2
     frames = np.random.default_rng(0).integers(0, 256, (8, *IMAGE_SHAPE), dtype=np.uint8)
     frames = frames.astype(np.float32)
@@ -61,14 +62,15 @@ def run(args: argparse.Namespace) -> int:
     difference = max(float(np.max(np.abs(np.asarray(g) - e))) for g, e in zip(got, expected,
                                                                                strict=True))
     if difference > PARITY_LIMIT:
-        print(f"error: the ensemble differs from its members' mean by {difference:.2e}",
+        print("clonedrive ensemble: the ensemble differs from its members' mean by "
+              f"{difference:.2e}",
               file=sys.stderr)
         return 1
     try:
         with atomic_path(out) as temporary:  # creates the folder
             ensemble.save(temporary)
     except OSError as error:
-        print(f"error: cannot write {out}: {error}", file=sys.stderr)
+        print(f"clonedrive ensemble: cannot write {out}: {error}", file=sys.stderr)
         return 1
     kind = "steering and target speed" if has_speed_head(ensemble) else "steering"
     print(f"wrote {out}: the mean {kind} of {len(members)} models "

@@ -81,7 +81,7 @@ def run(args) -> int:
         for name in tracks:
             load_track(name)
     except TrackError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
     try:
         config = EvalConfig(tracks=tuple(tracks),
@@ -93,18 +93,18 @@ def run(args) -> int:
                             max_seconds=args.max_seconds, video_saliency=args.video_saliency,
                             workers=args.workers)
     except ValueError as error:  # --speed nan, -5, 31...
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
     try:
         policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)
     except (FileNotFoundError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path(args.model).resolve().parent / "eval"
     try:
         prepare_output_folder(out)  # a read-only or full place fails now, not after driving
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
     report = evaluate(policy, config, out, progress=not args.json, model_path=str(args.model),
                       model_options={"trust": args.trust_model, "runtime": args.runtime})

@@ -39,10 +39,10 @@ def run(args: argparse.Namespace) -> int:
     model_path = Path(args.model)
     out = Path(args.out) if args.out else model_path.with_suffix(".onnx")
     if out.suffix.lower() != ".onnx":
-        print(f"error: --out {out}: the file name must end in .onnx", file=sys.stderr)
+        print(f"clonedrive export: --out {out}: the file name must end in .onnx", file=sys.stderr)
         return 2
     if model_path.suffix.lower() == ".onnx":
-        print(f"error: {model_path} is already ONNX", file=sys.stderr)
+        print(f"clonedrive export: {model_path} is already ONNX", file=sys.stderr)
         return 2
     try:
         model = load_model(model_path, trust=args.trust_model, runtime="keras")
@@ -51,10 +51,10 @@ def run(args: argparse.Namespace) -> int:
         export_onnx(model, out)
         onnx_model = OnnxModel.from_file(out)
     except (FileNotFoundError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive export: {error}", file=sys.stderr)
         return 1
     except OSError as error:
-        print(f"error: cannot write {out}: {error}", file=sys.stderr)
+        print(f"clonedrive export: cannot write {out}: {error}", file=sys.stderr)
         return 1
     frames = np.random.default_rng(0).integers(0, 256, (8, *IMAGE_SHAPE), dtype=np.uint8)
     keras_out = model.predict_on_batch(frames.astype(np.float32))
@@ -66,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
           f"{', '.join(onnx_model.output_names)}; max |ONNX Runtime - Keras| on 8 test frames: "
           f"{difference:.2e}")
     if difference > PARITY_LIMIT:
-        print(f"error: the ONNX model differs from Keras by {difference:.2e} (> {PARITY_LIMIT})",
+        print(f"clonedrive export: the ONNX model differs from Keras by {difference:.2e} "
+              f"(> {PARITY_LIMIT})",
               file=sys.stderr)
         return 1
     return 0

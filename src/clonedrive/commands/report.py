@@ -40,13 +40,13 @@ def run(args) -> int:
     from clonedrive.report.writeup import ReportConfig, write_report
 
     if not args.run_dir.is_dir():
-        print(f"error: run folder {args.run_dir} does not exist", file=sys.stderr)
+        print(f"clonedrive report: run folder {args.run_dir} does not exist", file=sys.stderr)
         return 2
     try:
         config = ReportConfig(max_failures=args.max_failures,
                               real_logs=tuple(str(log) for log in args.real_log))
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive report: {error}", file=sys.stderr)
         return 2
     result = write_report(args.run_dir, args.out, config, progress=not args.json)
     if args.json:

@@ -56,7 +56,7 @@ def run(args) -> int:
                               strip=args.strip)
         rows = describe_tracks(config)
     except (TrackError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive tracks: {error}", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(rows, indent=2))

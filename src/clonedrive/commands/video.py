@@ -31,12 +31,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = VideoConfig(fps=args.fps, out=args.out)
     except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive video: {error}", file=sys.stderr)
         return 2
     try:
         summary = encode_folder(args.folder, config.fps, config.out, progress=not args.json)
     except (FileNotFoundError, ValueError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"clonedrive video: {error}", file=sys.stderr)
         return 1
     if args.json:
         result = {

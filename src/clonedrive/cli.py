@@ -47,6 +47,18 @@ def _available_verbs() -> list[tuple[str, object]]:
     return verbs
 
 
+#: The top-level help's closing text: the order a user runs the verbs in, and the docs.
+TOP_EPILOG = """\
+in the order you would run them:
+  clonedrive demo                                  # all of it, on built-in defaults
+  clonedrive record ... -> check -> train -> evaluate -> report
+  then: saliency, crosscheck (real logs), bench, dagger, ensemble, export, drive (Udacity)
+
+'clonedrive VERB --help' explains a verb and ends with examples.
+Documentation: the docs/ folder of the repository (mkdocs serve), starting at
+docs/getting-started.md."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="clonedrive",
@@ -55,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
             "train a Keras network to steer from one camera image, and prove in closed loop "
             "that it drives. Compatible with the Udacity simulator's data and drive protocol."
         ),
+        epilog=TOP_EPILOG,
+        formatter_class=_HelpFormatter,
     )
     from clonedrive import __version__
 
@@ -65,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
             verb,
             help=module.HELP,
             description=getattr(module, "DESCRIPTION", module.HELP),
+            epilog=_examples(module.EXAMPLES),
             formatter_class=_HelpFormatter,
         )
         module.add_arguments(sub)
@@ -72,11 +87,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _examples(lines: tuple[str, ...]) -> str:
+    return "examples:\n" + "\n".join(f"  {line}" for line in lines)
+
+
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """argparse's "(default: ...)" after each option's help, except on on/off flags (whose
     default is only the opposite of the flag: "--no-video (default: True)" misleads), on
     options whose default is None (their help says what happens without them) and on help
-    that already names its default."""
+    that already names its default. Examples and the verb order are shown as written."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if text.startswith(("examples:", "in the order")):
+            return "\n".join(indent + line for line in text.splitlines())
+        return super()._fill_text(text, width, indent)
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.world.names import TRACK_NAMES_HELP
+
 HELP = "let a drive server (clonedrive drive, or Udacity's drive.py) steer our simulated car"
 DESCRIPTION = (
     "Run the simulator headless in autonomous mode: connect to a drive server at "
@@ -13,13 +15,18 @@ DESCRIPTION = (
     "replies). Start the server first, e.g. `clonedrive drive model.keras`. Prints laps, "
     "interventions, autonomy % and cross-track error at the end."
 )
+#: Example command lines, shown at the end of ``clonedrive autonomous --help``.
+EXAMPLES = (
+    "clonedrive drive runs/x/model.keras &   # in one shell",
+    "clonedrive autonomous --track lake --laps 1",
+)
 
 
 def add_arguments(parser) -> None:
     from clonedrive.udacity.client import AutonomousConfig
 
     d = AutonomousConfig()
-    parser.add_argument("--track", default=d.track, help="lake, mountain, gen:<seed> or a .json")
+    parser.add_argument("--track", default=d.track, help=TRACK_NAMES_HELP)
     parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
     parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
                         help="the drive server's set speed (drive.py's and `clonedrive drive`'s "

@@ -22,6 +22,11 @@ DESCRIPTION = (
     "std. Episodes run in batches on --workers processes (default: one per CPU core), or on "
     "Ray with --ray; the results are the same either way."
 )
+#: Example command lines, shown at the end of ``clonedrive bench --help``.
+EXAMPLES = (
+    "clonedrive bench runs/x/model.keras --out runs/x/bench",
+    "clonedrive bench a=runs/a/model.keras b=runs/b/model.keras --split new-tracks-hard",
+)
 
 
 def add_arguments(parser) -> None:

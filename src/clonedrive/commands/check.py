@@ -18,6 +18,11 @@ DESCRIPTION = (
     "--no-decode is given. Exit status 0 when the log is readable (even with skipped rows), 1 "
     "when the CSV is missing or is not a driving log (UTF-16, an image, binary data)."
 )
+#: Example command lines, shown at the end of ``clonedrive check --help``.
+EXAMPLES = (
+    "clonedrive check data/middle",
+    "clonedrive check ~/udacity/my_recording --json",
+)
 
 HISTOGRAM_BINS = 11
 BAR_WIDTH = 40

@@ -18,6 +18,10 @@ DESCRIPTION = (
     "keyboard steering is spiky). Writes crosscheck.json, crosscheck.csv (per row) and "
     "crosscheck.png (traces and a scatter) into --out."
 )
+#: Example command lines, shown at the end of ``clonedrive crosscheck --help``.
+EXAMPLES = (
+    "clonedrive crosscheck runs/x/model.keras ~/udacity/my_recording --out runs/x/crosscheck",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.world.names import TRACK_NAMES_HELP
+
 HELP = "DAgger: the network drives (mixed with the expert), the expert labels, retrain, repeat"
 DESCRIPTION = (
     "Start from a training run (clonedrive train --out BASE) and iterate DAgger (Ross, Gordon & "
@@ -15,6 +17,10 @@ DESCRIPTION = (
     "with the base data, and the network is retrained from its previous weights and evaluated "
     "in closed loop. Plain cloning with as many extra expert labels is trained and evaluated "
     "for comparison. Writes iter_NN/{data,train,eval}/, plain/, dagger.json and dagger.png."
+)
+#: Example command lines, shown at the end of ``clonedrive dagger --help``.
+EXAMPLES = (
+    "clonedrive dagger runs/x --out runs/x-dagger --iterations 3",
 )
 
 
@@ -31,7 +37,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--beta-decay", type=float, default=d.beta_decay,
                         help="beta is multiplied by this each iteration")
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
-                        help=f"collection track (repeatable; default {' '.join(d.tracks)})")
+                        help=f"collection track: {TRACK_NAMES_HELP} (repeatable; default "
+                             f"{' '.join(d.tracks)})")
     parser.add_argument("--laps", type=int, default=d.laps, help="laps per track and iteration")
     parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
                         help="set speed (a cap) for collecting and evaluating")

@@ -13,6 +13,11 @@ DESCRIPTION = (
     "and write report.md / report.html. Finished stages are reused when run again on the same "
     "folder. --quick runs a small version of every stage in about a minute."
 )
+#: Example command lines, shown at the end of ``clonedrive demo --help``.
+EXAMPLES = (
+    "clonedrive demo                      # the whole job into runs/demo/",
+    "clonedrive demo --quick --out runs/q  # every stage, small, in about a minute",
+)
 
 
 def add_arguments(parser) -> None:

@@ -26,6 +26,11 @@ DESCRIPTION = (
     "IMAGE_FOLDER`. Replies use the decimal separator the simulator's telemetry uses (comma "
     "locales). Binds 127.0.0.1 unless --host says otherwise."
 )
+#: Example command lines, shown at the end of ``clonedrive drive --help``.
+EXAMPLES = (
+    "clonedrive drive runs/x/model.keras   # then start the simulator in Autonomous Mode",
+    "clonedrive drive runs/x/model.keras frames/ --port 4568",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -14,6 +14,10 @@ DESCRIPTION = (
     "is an ordinary .keras model: drive, evaluate, bench and export take it. The ensemble is "
     "checked against the members' mean on test frames and the largest difference is printed."
 )
+#: Example command lines, shown at the end of ``clonedrive ensemble --help``.
+EXAMPLES = (
+    "clonedrive ensemble runs/a/model.keras runs/b/model.keras --out runs/ens.keras",
+)
 #: The ensemble is refused if it differs from the members' mean by more than this.
 PARITY_LIMIT = 1e-5
 

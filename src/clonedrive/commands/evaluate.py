@@ -10,6 +10,7 @@ from clonedrive.commands.model_options import (
     add_steering_arguments,
     load_policy_from_args,
 )
+from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "drive a model in closed loop (headless) and measure laps, interventions, CTE"
 DESCRIPTION = (
@@ -19,6 +20,11 @@ DESCRIPTION = (
     "Writes eval.json, a track map per run with the driven path, the frame the network saw at "
     "each off-road event, and with --video an mp4 with a HUD per built-in-track run."
 )
+#: Example command lines, shown at the end of ``clonedrive evaluate --help``.
+EXAMPLES = (
+    "clonedrive evaluate runs/x/model.keras --track lake --speed 15 --speed 30",
+    "clonedrive evaluate runs/x/model.keras --track mountain --laps 1 --video --out runs/x/eval",
+)
 
 
 def add_arguments(parser) -> None:
@@ -27,8 +33,8 @@ def add_arguments(parser) -> None:
     d = EvalConfig()
     parser.add_argument("model", help="trained model (.keras, .h5 or .onnx)")
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
-                        help="track to drive (repeatable): lake, mountain, gen:<seed>, or a .json "
-                             f"file; default {', '.join(d.tracks)} (none if only --unseen is "
+                        help=f"track to drive (repeatable): {TRACK_NAMES_HELP}; default "
+                             f"{', '.join(d.tracks)} (none if only --unseen is "
                              "given)")
     parser.add_argument("--speed", action="append", type=float, default=None, metavar="MPH",
                         help="set speed in mph (repeatable); default "

@@ -14,6 +14,10 @@ DESCRIPTION = (
     "predict the same test frames and the largest difference is printed. Needs the onnx extra "
     '(pip install -e ".[onnx]").'
 )
+#: Example command lines, shown at the end of ``clonedrive export --help``.
+EXAMPLES = (
+    "clonedrive export runs/x/model.keras --onnx      # writes runs/x/model.onnx",
+)
 #: The export is refused if ONNX Runtime and Keras differ by more than this on the test frames.
 PARITY_LIMIT = 1e-4
 

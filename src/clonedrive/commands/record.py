@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from clonedrive.world.names import TRACK_NAMES_HELP
+
 HELP = "record the expert driving a track as a Udacity-format log (driving_log.csv + IMG/)"
 DESCRIPTION = (
     "Drive the expert autopilot around a track in the headless simulator and write OUT/"
@@ -16,6 +18,11 @@ DESCRIPTION = (
     "curves). --noise perturbs the steering the car applies while the recorded label stays the "
     "expert's clean command. An existing OUT is appended to, with timestamps continuing after "
     "its last image. A killed recorder leaves a log whose every row's images exist."
+)
+#: Example command lines, shown at the end of ``clonedrive record --help``.
+EXAMPLES = (
+    "clonedrive record --track lake --style center --laps 2 --speed 30 --out data/middle",
+    "clonedrive record --track mountain --style weave --laps 1 --out data/weave",
 )
 
 HISTOGRAM_BAR_WIDTH = 40
@@ -40,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     d = RecordConfig()
     parser.add_argument("--track", default=d.track,
-                        help="built-in track name, gen:<seed>, or a track .json file")
+                        help=TRACK_NAMES_HELP)
     parser.add_argument("--style", default=d.style, choices=STYLES, help="how the expert drives")
     parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
     parser.add_argument("--seconds", type=float, default=d.seconds,

@@ -18,6 +18,11 @@ DESCRIPTION = (
     "OUT/report.html with the figures embedded (one file to send). With --real-log, a section "
     "checks the model open loop on recorded Udacity logs (clonedrive crosscheck)."
 )
+#: Example command lines, shown at the end of ``clonedrive report --help``.
+EXAMPLES = (
+    "clonedrive report runs/x                          # runs/x/report.md and report.html",
+    "clonedrive report runs/demo --real-log ~/udacity/my_recording",
+)
 
 
 def add_arguments(parser) -> None:

@@ -13,6 +13,10 @@ DESCRIPTION = (
     "painted in green on the frame. Writes <name>_saliency.png per frame and saliency.json "
     "(predicted steering and, for a speed-head model, target speed) into --out."
 )
+#: Example command lines, shown at the end of ``clonedrive saliency --help``.
+EXAMPLES = (
+    "clonedrive saliency runs/x/model.keras data/middle --out runs/x/saliency",
+)
 
 
 def add_arguments(parser) -> None:

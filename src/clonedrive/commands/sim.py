@@ -9,6 +9,7 @@ from dataclasses import asdict
 
 from clonedrive.commands.record import add_log_format_arguments
 from clonedrive.udacity_spec import PORT
+from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "drive a track yourself in a window (keyboard, mouse or gamepad) and record it"
 DESCRIPTION = (
@@ -24,6 +25,10 @@ DESCRIPTION = (
     "drives --steps steps with the software renderer in an offscreen buffer and can save a "
     "screenshot: e.g. --track lake --hold w --steps 45 --screenshot shot.png."
 )
+#: Example command lines, shown at the end of ``clonedrive sim --help``.
+EXAMPLES = (
+    "clonedrive sim --track mountain --out data/by-hand   # drive with the keys, R records",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     d = ManualConfig()
     parser.add_argument("--track", default=None,
-                        help="skip the menu and drive this track (name, gen:<seed> or .json)")
+                        help=f"skip the menu and drive this track: {TRACK_NAMES_HELP}")
     parser.add_argument("--reverse", action="store_true", help="with --track: drive backwards")
     parser.add_argument("--out", default=DEFAULT_OUT_DIR,
                         help="folder R records into (appended to if it holds a log)")

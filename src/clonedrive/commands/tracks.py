@@ -6,12 +6,19 @@ import json
 import sys
 from dataclasses import dataclass
 
+from clonedrive.world.names import TRACK_NAMES_HELP
+
 HELP = "list tracks (length, width, elevation, tightest curve) and draw their maps"
 DESCRIPTION = (
     "List the built-in tracks (or those named with --track: a JSON file or gen:<seed>) with "
     "length, width, elevation range, minimum radius and maximum grade, and write for each a "
     "top-down map PNG (road, direction, start line, elevation by colour) and a strip of "
     "center/left/right camera frames at a few places along the track."
+)
+#: Example command lines, shown at the end of ``clonedrive tracks --help``.
+EXAMPLES = (
+    "clonedrive tracks                     # every track, maps and camera strips in runs/tracks/",
+    "clonedrive tracks --track gen2:hard:7 --json",
 )
 
 
@@ -37,7 +44,7 @@ class TracksConfig:
 def add_arguments(parser) -> None:
     defaults = TracksConfig()
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
-                        help="track name, gen:<seed> or path to a .json track (repeatable); "
+                        help=f"{TRACK_NAMES_HELP} (repeatable); "
                              "default: all built-in tracks")
     parser.add_argument("--out", default=defaults.out, help="folder for the map and strip PNGs")
     parser.add_argument("--no-images", dest="images", action="store_false",

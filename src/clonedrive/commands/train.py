@@ -23,6 +23,11 @@ DESCRIPTION = (
     "recipe.toml, dataset.json and steering_before/after.png. An interrupted run continues "
     "with --resume --out FOLDER."
 )
+#: Example command lines, shown at the end of ``clonedrive train --help``.
+EXAMPLES = (
+    "clonedrive train data/middle data/weave --out runs/x",
+    "clonedrive train --recipe runs/demo/data/recipe.toml --model fast --epochs 6 --out runs/y",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -12,6 +12,11 @@ DESCRIPTION = (
     "beside the folder, as Udacity's video.py does. Frames that do not decode or whose size "
     "differs from the first are skipped and counted."
 )
+#: Example command lines, shown at the end of ``clonedrive video --help``.
+EXAMPLES = (
+    "clonedrive video frames/                          # frames/ -> frames.mp4",
+    "clonedrive video frames/ --fps 30 --out drive.mp4",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

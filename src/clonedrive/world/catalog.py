@@ -21,11 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.world.generate import V1_VERSION, generate
+from clonedrive.world.names import GENERATED_NAMES
 from clonedrive.world.segments import DEFAULT_DIFFICULTY, DIFFICULTIES
 from clonedrive.world.segments import VERSION as V2_VERSION
 from clonedrive.world.track import Track, TrackError
-
-GENERATED_NAMES = "gen:<seed>, gen1:<seed>, gen2:<seed> or gen2:<easy|medium|hard>:<seed>"
 
 
 def builtin_track_names() -> list[str]:

@@ -25,7 +25,7 @@ def test_a_runs_map_over_the_kept_track_map_matches_the_whole_figure(tmp_path):
     maps._BACKGROUNDS.clear()
     track = load_track("lake")
     first_xy, first_cte = weaving_path(track, 2.0, until=0.9)
-    second_xy, second_cte = weaving_path(track, 1.0)
+    second_xy, second_cte = weaving_path(track, 1.5)  # the same colour scale (0-2 m) as the first
     plot_track_map(track, tmp_path / "first.png", title="first run", driven_xy=first_xy,
                    abs_cte_m=first_cte)
     assert len(maps._BACKGROUNDS) == 1  # the track's map is kept for its next runs
@@ -60,3 +60,28 @@ def test_a_path_beyond_the_kept_axes_is_drawn_whole_and_the_cache_is_bounded(tmp
         plot_track_map(other, tmp_path / f"{index}.png", driven_xy=path_xy, abs_cte_m=path_cte)
     kept = [background.track.name for background in maps._BACKGROUNDS.values()]
     assert kept == names[-maps._BACKGROUND_TRACKS:]  # the newest few, the oldest dropped
+
+
+def test_the_colour_scale_fits_the_run(tmp_path):
+    """A calm run is not drawn in one colour on a scale made for the road's edge: the scale tops
+    out at the first round figure above the run's largest |CTE|, and each scale keeps its own
+    track map."""
+    assert maps.cte_scale_top(np.array([0.05, 0.09])) == 0.25
+    assert maps.cte_scale_top(np.array([0.3, np.nan, 1.1])) == 2.0
+    assert maps.cte_scale_top(np.array([600.0])) == maps.CTE_SCALE_TOPS_M[-1]
+    assert maps.cte_scale_top(None) == maps.CTE_SCALE_TOPS_M[0]
+    maps._BACKGROUNDS.clear()
+    track = load_track("lake")
+    calm_xy, calm_cte = weaving_path(track, 0.2)
+    wide_xy, wide_cte = weaving_path(track, 3.0)
+    plot_track_map(track, tmp_path / "calm.png", driven_xy=calm_xy, abs_cte_m=calm_cte)
+    plot_track_map(track, tmp_path / "wide.png", driven_xy=wide_xy, abs_cte_m=wide_cte)
+    assert sorted(key[-1] for key in maps._BACKGROUNDS) == [0.25, 4.0]
+    # The calm path spans the colour map: drawn again with |CTE| 0 throughout (one colour, the
+    # same scale), most of its pixels change, and into several colours.
+    plot_track_map(track, tmp_path / "flat.png", driven_xy=calm_xy,
+                   abs_cte_m=np.zeros(len(calm_cte)))
+    calm, flat = pixels(tmp_path / "calm.png"), pixels(tmp_path / "flat.png")
+    changed = np.abs(calm - flat).max(axis=2) > 60
+    assert changed.sum() > 500
+    assert len({tuple(colour) for colour in calm[changed] // 48}) >= 4

@@ -133,3 +133,21 @@ def test_early_stopping_counts_epochs_since_the_best(tmp_path: Path) -> None:
     history.append({"epoch": 4, "val_loss": 0.35})
     assert _run_recorder_class()(tmp_path, config, history, {}).should_stop()
     assert not _run_recorder_class()(tmp_path, FAST, history, {}).should_stop()
+
+
+def test_training_logs_one_line_per_epoch_when_not_on_a_terminal(damaged_recordings,
+                                                                  tmp_path: Path) -> None:
+    """Output to a file or pipe gets Keras's one line per epoch, not the progress bar's frames."""
+    import subprocess
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", "clonedrive", "train", *map(str, damaged_recordings), "--model",
+         "fast", "--epochs", "2", "--batch-size", "128", "--no-h5", "--out", str(tmp_path / "r")],
+        capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    output = done.stdout + done.stderr
+    epoch_lines = [line for line in output.splitlines() if " - loss: " in line]
+    assert len(epoch_lines) == 2  # one per epoch
+    assert all("val_loss" in line for line in epoch_lines)
+    assert "━" not in output  # no bar frames

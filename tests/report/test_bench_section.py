@@ -22,7 +22,7 @@ def test_an_unreadable_bench_json_is_a_note_in_the_report(tmp_path: Path, conten
     (run / "bench" / "odd" / "bench.json").write_text(content, encoding="utf-8")
     result = write_report(run, tmp_path / "out")
     markdown = result.markdown_path.read_text(encoding="utf-8")
-    section = markdown[markdown.index("\n## Benchmark\n"):]
+    section = markdown[markdown.index(". Benchmark\n"):]
     assert "### `bench/odd`" in section and says in section
     assert any(says in note for note in result.notes)
     assert sorted(p.name for p in (run / "bench" / "odd").iterdir()) == ["bench.json"]

@@ -23,7 +23,7 @@ def test_real_logs_get_a_section_only_when_given(tmp_path: Path, tiny_model_path
             str(tmp_path / "no_such_log"))
     result = write_report(run, tmp_path / "out", ReportConfig(real_logs=logs))
     markdown = result.markdown_path.read_text(encoding="utf-8")
-    section = markdown[markdown.index(f"## {title}"):]
+    section = markdown[markdown.index(f". {title}\n"):]
     assert "| `mountain_windows_paths` | 70 |" in section
     assert "| `lake_posix_mixed_columns` | 70 |" in section
     assert "`no_such_log`: not checked" in section

@@ -1,13 +1,15 @@
-"""Top-down track maps (matplotlib, Agg): the road, its direction, the start line, elevation by
-colour, and optionally a driven path coloured by |CTE| with off-road points marked.
+"""Top-down track maps (matplotlib, Agg): the road, its driving direction (blue arrows, named
+in the map's corner), the start line, elevation by colour, and optionally a driven path coloured
+by |CTE| with off-road points marked. The |CTE| colour scale fits the run: it tops out at the
+first of :data:`CTE_SCALE_TOPS_M` above the run's largest |CTE|, so a path that stayed within
+0.3 m of the centre is not drawn in one colour on a scale made for the road's edge.
 
 Evaluation draws one map per run, and most of a map's cost is the track's part (road, axes,
 ticks, colour bar), the same for every run on that track. So maps with a driven path reuse it:
 the track's figure is drawn once per process (:data:`_BACKGROUNDS`, the last few tracks), its
-pixels are kept, and each run restores them and draws only its own path, markers and title on
-top (matplotlib's blitting). A path that leaves the track's axes falls back to a full drawing,
-so nothing is cut off. Measured on lake and mountain (900-point paths, a training running
-beside): 0.22-0.28 s a map drawn whole, 0.03-0.05 s reusing the track's.
+pixels are kept (one per track and colour scale), and each run restores them and draws only its
+own path, markers and title on top (matplotlib's blitting). A path that leaves the track's axes
+falls back to a full drawing, so nothing is cut off.
 """
 
 from __future__ import annotations
@@ -52,7 +54,9 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
         ax.add_collection(lines)
         colorbar = ax.figure.colorbar(lines, ax=ax, fraction=0.04, pad=0.02)
         colorbar.set_label("elevation [m]")
-    # Direction arrows every ~1/12 of the lap.
+    # Direction arrows every ~1/12 of the lap, and what they are.
+    ax.text(0.01, 0.01, "blue arrows: driving direction", transform=ax.transAxes, fontsize=8,
+            color="tab:blue", va="bottom", zorder=6)
     for s in np.linspace(0, track.length_m, 12, endpoint=False)[1:]:
         x, y, _ = track.point(s)
         heading = float(track.heading_at(s))
@@ -70,6 +74,9 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     ax.set_ylabel("y (north) [m]")
 
 
+#: Tops [m] the |CTE| colour scale may have; a run's scale takes the first at or above its
+#: largest |CTE| (the last: anything beyond, up to the road's half width and past it).
+CTE_SCALE_TOPS_M = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 #: The drawn maps (figure and pixels) kept for their tracks' next runs, newest last.
 _BACKGROUNDS: OrderedDict = OrderedDict()
 _BACKGROUND_TRACKS = 4
@@ -87,15 +94,16 @@ def plot_track_map(track: Track, path: str | Path, *, title: str | None = None,
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     title = title or _default_title(track)
+    top = cte_scale_top(abs_cte_m)
     if reuse and driven_xy is not None and len(driven_xy) > 1:
-        background = _background(track)
+        background = _background(track, top)
         if background.contains(driven_xy, off_road_xy):
             background.draw_run(path, title, driven_xy, abs_cte_m, off_road_xy)
             return path
     fig, ax = plt.subplots(**_FIGURE)
     draw_track(ax, track, elevation=driven_xy is None)
     if driven_xy is not None and len(driven_xy) > 1:
-        colorbar = fig.colorbar(_path_lines(track, driven_xy, abs_cte_m, ax), ax=ax,
+        colorbar = fig.colorbar(_path_lines(driven_xy, abs_cte_m, ax, top), ax=ax,
                                 fraction=0.04, pad=0.02)
         colorbar.set_label("|cross-track error| [m]")
     _off_road_markers(ax, off_road_xy)
@@ -115,19 +123,23 @@ def _default_title(track: Track) -> str:
             f"min radius {summary['min_radius_m']:.0f} m")
 
 
-def _path_lines(track: Track, driven_xy: np.ndarray, abs_cte_m: np.ndarray | None, ax):
-    """The driven path as a line collection coloured by |CTE| (0 to half the widest road)."""
+def cte_scale_top(abs_cte_m: np.ndarray | None) -> float:
+    """The top [m] of a run's |CTE| colour scale (see :data:`CTE_SCALE_TOPS_M`)."""
+    finite = np.asarray(abs_cte_m, dtype=float) if abs_cte_m is not None else np.zeros(0)
+    finite = finite[np.isfinite(finite)]
+    largest = float(finite.max()) if finite.size else 0.0
+    return next((top for top in CTE_SCALE_TOPS_M if largest <= top), CTE_SCALE_TOPS_M[-1])
+
+
+def _path_lines(driven_xy: np.ndarray, abs_cte_m: np.ndarray | None, ax, top: float):
+    """The driven path as a line collection coloured by |CTE| (0 to ``top``)."""
     segments = np.stack([driven_xy[:-1], driven_xy[1:]], axis=1)
     colour = abs_cte_m[:-1] if abs_cte_m is not None else np.zeros(len(segments))
     lines = LineCollection(segments, cmap="plasma", linewidths=1.8, zorder=7)
     lines.set_array(colour)
-    lines.set_clim(*_cte_limits(track))
+    lines.set_clim(0.0, top)
     ax.add_collection(lines)
     return lines
-
-
-def _cte_limits(track: Track) -> tuple[float, float]:
-    return 0.0, max(0.5 * float(track.width.max()), 1e-3)
 
 
 def _off_road_markers(ax, off_road_xy: np.ndarray | None) -> list:
@@ -140,20 +152,21 @@ def _off_road_markers(ax, off_road_xy: np.ndarray | None) -> list:
 
 
 class _Background:
-    """A track's map drawn once with an empty title and no path: its figure and pixels."""
+    """A track's map drawn once with an empty title and no path, its |CTE| colour bar topping
+    out at ``top``: its figure and pixels."""
 
-    def __init__(self, track: Track) -> None:
+    def __init__(self, track: Track, top: float) -> None:
         from matplotlib.cm import ScalarMappable
         from matplotlib.colors import Normalize
 
         self.fig, self.ax = plt.subplots(**_FIGURE)
         draw_track(self.ax, track, elevation=False)
-        scale = ScalarMappable(Normalize(*_cte_limits(track)), cmap="plasma")
+        scale = ScalarMappable(Normalize(0.0, top), cmap="plasma")
         colorbar = self.fig.colorbar(scale, ax=self.ax, fraction=0.04, pad=0.02)
         colorbar.set_label("|cross-track error| [m]")
         self.title = self.ax.set_title(" ", fontsize=10)
         self.fig.subplots_adjust(**_MARGINS)
-        self.track = track
+        self.track, self.top = track, top
         canvas = self.fig.canvas
         canvas.draw()
         self.ax.set_autoscale_on(False)  # a run's path must not move the kept axes
@@ -177,7 +190,7 @@ class _Background:
 
         canvas, ax = self.fig.canvas, self.ax
         canvas.restore_region(self.pixels)
-        artists = [_path_lines(self.track, driven_xy, abs_cte_m, ax),
+        artists = [_path_lines(driven_xy, abs_cte_m, ax, self.top),
                    *_off_road_markers(ax, off_road_xy)]
         self.title.set_text(title)
         try:
@@ -194,15 +207,16 @@ class _Background:
                 artist.remove()
 
 
-def _background(track: Track) -> _Background:
-    """The kept map of ``track`` (drawn now if it is not among the last few tracks').
+def _background(track: Track, top: float) -> _Background:
+    """The kept map of ``track`` with its colour scale topping at ``top`` (drawn now if it is
+    not among the last few kept).
 
     Kept by the track's content (name, centreline, widths), not by the object: each simulator
     loads its own copy of a track."""
-    key = _track_key(track)
+    key = (*_track_key(track), top)
     background = _BACKGROUNDS.get(key)
     if background is None:
-        background = _BACKGROUNDS[key] = _Background(track)
+        background = _BACKGROUNDS[key] = _Background(track, top)
     _BACKGROUNDS.move_to_end(key)
     while len(_BACKGROUNDS) > _BACKGROUND_TRACKS:
         _, old = _BACKGROUNDS.popitem(last=False)

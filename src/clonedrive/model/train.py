@@ -32,6 +32,7 @@ import json
 import logging
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -220,7 +221,7 @@ def train(
                 epochs=config.epochs,
                 initial_epoch=epochs_done,
                 shuffle=False,  # DrivingBatches shuffles, reproducibly
-                verbose=1 if progress else 0,
+                verbose=_keras_verbosity(progress),
                 callbacks=[recorder],
             )
     finally:
@@ -649,3 +650,11 @@ def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format="png")
     return path
+
+
+def _keras_verbosity(progress: bool) -> int:
+    """Keras's ``verbose``: nothing without progress; a live bar on a terminal; otherwise one
+    line per epoch, so a log file holds the epochs rather than the bar's frames."""
+    if not progress:
+        return 0
+    return 1 if sys.stdout.isatty() else 2

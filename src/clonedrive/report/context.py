@@ -31,15 +31,16 @@ logger = logging.getLogger("clonedrive.report.writeup")
 #: malformed files (OSError, ValueError incl. JSON and TOML errors), missing or mistyped keys.
 SECTION_ERRORS = (OSError, ValueError, KeyError, TypeError, IndexError)
 
+#: The sections' titles; the write-up numbers the sections it holds in order.
 SECTION_TITLES = {
-    "data": "1. Data",
-    "balance": "2. Balancing the steering",
-    "network": "3. The network",
-    "training": "4. Training",
-    "results": "5. Closed-loop results",
-    "expert": "6. Against the expert",
-    "saliency": "7. Where the network looks",
-    "timings": "8. Run timings",
+    "data": "Data",
+    "balance": "Balancing the steering",
+    "network": "The network",
+    "training": "Training",
+    "results": "Closed-loop results",
+    "expert": "Against the expert",
+    "saliency": "Where the network looks",
+    "timings": "Run timings",
 }
 #: Sections only in the report when asked for (``report --real-log``) or when the run has
 #: them (``dagger.json``, ``bench.json``).
@@ -104,6 +105,7 @@ class ReportContext:
         self.figures_dir = figures_dir
         self.config = config
         self.notes: list[str] = []
+        self.left_out: list[tuple[str, str]] = []  # (section title, why), sections not shown
         self.facts: dict = {}  # headline figures gathered on the way, for the intro
         self.unreadable: dict[str, str] = {}  # file name -> why it could not be read
         train = parts.train_dir
@@ -131,8 +133,11 @@ class ReportContext:
                 f"This section could not be generated: {type(error).__name__}: {error}")])]
 
     def missing(self, title: str, text: str) -> list[Section]:
-        """A section that is only its heading and a note saying what was missing."""
-        return [Section(title, blocks=[self.note(text)])]
+        """No section: its inputs are missing. The report's introduction says which sections
+        it left out and why (``text``, also kept in :attr:`notes`)."""
+        self.notes.append(text)
+        self.left_out.append((title, text))
+        return []
 
     def headline(self, text: str) -> None:
         """One line for the report's "In short" list (in the order the sections run)."""

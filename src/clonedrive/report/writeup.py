@@ -17,8 +17,10 @@ results), with figures made from the run. It finds, each optional:
   ``{"stages": [{"name": "record", "seconds": 12.5}, ...]}`` (``timings`` / ``timings_s``
   are read too).
 
-A section whose inputs are missing (or unreadable) keeps its heading and says why in one line;
-the report is written whatever the run holds. Figures go to ``OUT/report/*.png``, which
+A section whose inputs are missing is left out, and the introduction lists it with the reason
+in one line; a section that failed on bad input (an unreadable ``eval.json``, a corrupt model)
+keeps its heading and says why. The sections shown are numbered in order. The report is
+written whatever the run holds. Figures go to ``OUT/report/*.png``, which
 ``report.md`` links; ``report.html`` embeds them as ``data:`` URIs and references no file.
 
 This module puts the document together; each section is a module of
@@ -114,6 +116,9 @@ def write_report(run_dir: str | os.PathLike, out_dir: str | os.PathLike | None =
             bar.update(1)
     finally:
         bar.close()
+    top_level = [section for section in document.sections if section.level == 2]
+    for number, section in enumerate(top_level, start=1):
+        section.title = f"{number}. {section.title}"
     document.intro = intro.build(context)
 
     markdown_path = write_text_atomic(out / MARKDOWN_NAME, to_markdown(document, out))

@@ -23,6 +23,8 @@ from clonedrive.world.track import Track
 _LEAD_M = 14.0
 _LABEL_W = 120
 _CAMERA_ORDER = ("left", "center", "right")
+#: Height of the header row that names the cameras [px].
+_TITLE_H = 24
 
 
 def strip_places(track: Track) -> list[tuple[str, float]]:
@@ -80,6 +82,19 @@ def _label(text: str, height: int) -> np.ndarray:
     return panel
 
 
+def _camera_titles(width: int, height: int) -> np.ndarray:
+    """The strip's header row: each column's camera, above its frames."""
+    import cv2
+
+    header = np.full((_TITLE_H, _LABEL_W + len(_CAMERA_ORDER) * (width + 2), 3), 32,
+                     dtype=np.uint8)
+    for index, name in enumerate(_CAMERA_ORDER):
+        left = _LABEL_W + index * (width + 2) + 2
+        cv2.putText(header, f"{name} camera", (left + 6, _TITLE_H - 8),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.5, (235, 235, 235), 1, cv2.LINE_AA)
+    return header
+
+
 def write_track_strip(
     track: Track | str,
     path_png: str | os.PathLike,
@@ -89,8 +104,9 @@ def write_track_strip(
     height: int = IMAGE_HEIGHT,
 ) -> Path:
     """Render left/center/right frames at ``places`` ((label, s_m); default
-    :func:`strip_places`) with the car on the centreline, and write one PNG, a labelled row per
-    place (written atomically). Returns the PNG's path."""
+    :func:`strip_places`) with the car on the centreline, and write one PNG: a header naming
+    each column's camera, then a labelled row per place (written atomically). Returns the
+    PNG's path."""
     import cv2
 
     from clonedrive.sim.cameras import CameraRig
@@ -112,7 +128,7 @@ def write_track_strip(
                 row += [gap, frame]
             rows.append(np.hstack(row))
             rows.append(np.full((2, rows[-1].shape[1], 3), 255, dtype=np.uint8))
-    picture = np.vstack(rows[:-1])
+    picture = np.vstack([_camera_titles(width, height), *rows[:-1]])
     path = Path(path_png)
     path.parent.mkdir(parents=True, exist_ok=True)
     ok, encoded = cv2.imencode(".png", cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))

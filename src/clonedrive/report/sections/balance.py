@@ -1,4 +1,4 @@
-"""2. Balancing the steering: the histograms before and after, and the sample counts.
+"""Balancing the steering: the histograms before and after, and the sample counts.
 """
 
 from __future__ import annotations

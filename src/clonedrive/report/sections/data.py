@@ -1,4 +1,4 @@
-"""1. Data: the recordings (table, cameras, offsets, flips), one row's three camera views and
+"""Data: the recordings (table, cameras, offsets, flips), one row's three camera views and
 the augmentation examples.
 """
 

@@ -1,4 +1,4 @@
-"""6. Against the expert: each run's lap time and smoothness over the expert's on the same
+"""Against the expert: each run's lap time and smoothness over the expert's on the same
 track and speed cap (eval.json's ``expert`` and ``*_ratio`` figures; see
 :mod:`clonedrive.evaluate.reference`).
 """
@@ -9,7 +9,7 @@ import numpy as np
 
 from clonedrive.report import formatting as fmt
 from clonedrive.report.context import SECTION_TITLES, ReportContext
-from clonedrive.report.document import Paragraph, Section, Table
+from clonedrive.report.document import Bullets, Paragraph, Section, Table
 
 #: (eval.json key of the ratio, column title).
 RATIOS = (
@@ -19,6 +19,27 @@ RATIOS = (
     ("lateral_accel_rms_mps2_ratio", "lat. accel RMS"),
     ("lateral_jerk_mps3_ratio", "lat. jerk"),
 )
+#: The project's targets for a calm driver at speed, as ratios to the expert: (key, mean at
+#: most, no run above). A ratio with no entry has no target.
+TARGETS = {
+    "lap_time_ratio": (1.05, None),
+    "steering_rate_per_s_ratio": (1.5, 2.0),
+    "lateral_jerk_mps3_ratio": (1.5, None),
+}
+#: What each ratio measures, for the sentence under the table.
+MEANINGS = {
+    "lap_time_ratio": "the time of a clean lap; above 1 the network is slower than the "
+                      "expert",
+    "steering_rate_per_s_ratio": "how much the wheel moves per second; above 1 the network "
+                                 "steers more nervously than the expert",
+    "steering_jerk_per_s2_ratio": "how abruptly the wheel changes direction; it grows with "
+                                  "frame-to-frame noise in the predictions, so it is far above "
+                                  "1 for most networks",
+    "lateral_accel_rms_mps2_ratio": "the sideways acceleration passengers feel in bends; "
+                                    "above 1 the network's line through the bends is rougher",
+    "lateral_jerk_mps3_ratio": "how suddenly that sideways push changes, which passengers feel "
+                               "as jolts; above 1 the ride is jerkier than the expert's",
+}
 
 
 def build(ctx: ReportContext) -> list[Section]:
@@ -50,12 +71,30 @@ def build(ctx: ReportContext) -> list[Section]:
     blocks: list = [Paragraph(text), Table(
         ("track", "mph", "lap s", "expert lap s", *(name for _, name in RATIOS),
          "steering rate /s", "expert's /s"),
-        tuple(rows), align="lrrr" + "r" * len(RATIOS) + "rr", total_rows=(len(rows) - 1,))]
+        tuple(rows), align="lrrr" + "r" * len(RATIOS) + "rr", total_rows=(len(rows) - 1,)),
+        Paragraph("What the means say (1.0 = the expert's figure on the same tracks and caps):"),
+        Bullets(tuple(_meaning(key, name, means[key], compared) for key, name in RATIOS))]
     if means["lap_time_ratio"] is not None or means["steering_rate_per_s_ratio"] is not None:
         ctx.headline(f"Against the expert: lap time {fmt.num(means['lap_time_ratio'])}×, "
                      f"steering rate {fmt.num(means['steering_rate_per_s_ratio'])}×, lateral "
                      f"jerk {fmt.num(means['lateral_jerk_mps3_ratio'])}× (mean over runs).")
     return [Section(title, blocks=blocks)]
+
+
+def _meaning(key: str, name: str, mean: float | None, runs: list[dict]) -> str:
+    """One plain sentence on a ratio: what it measures, the run's figure and its target."""
+    if mean is None:
+        return f"**{name}**: no run has this figure ({MEANINGS[key]})."
+    sentence = f"**{name} {fmt.num(mean)}×**: {MEANINGS[key]}."
+    if key not in TARGETS:
+        return sentence + " No target is set for it."
+    limit, worst_limit = TARGETS[key]
+    values = [float(run[key]) for run in runs if isinstance(run.get(key), int | float)]
+    met = mean <= limit and (worst_limit is None or max(values) <= worst_limit)
+    target = f"at most {limit:g}× on average" + (
+        f", no run above {worst_limit:g}×" if worst_limit is not None else "")
+    return sentence + f" Target: {target}; {'met' if met else 'missed'}" + (
+        f" (the largest run: {fmt.num(max(values))}×)." if worst_limit is not None else ".")
 
 
 def _mean(values) -> float | None:

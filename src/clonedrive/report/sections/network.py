@@ -1,4 +1,4 @@
-"""3. The network: its layers, output shapes and parameter counts, read from ``model.keras``.
+"""The network: its layers, output shapes and parameter counts, read from ``model.keras``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""5. Closed-loop results: the table per run with totals, speed control, track maps, video
+"""Closed-loop results: the table per run with totals, speed control, track maps, video
 stills and (from :mod:`clonedrive.report.sections.failures`) the failure analysis.
 """
 
@@ -17,9 +17,9 @@ from clonedrive.udacity_spec import CONTROL_HZ
 def build(ctx: ReportContext) -> list[Section]:
     title = SECTION_TITLES["results"]
     report = ctx.eval
-    if report is None and "eval.json" in ctx.unreadable:
-        return ctx.missing(title, ctx.unreadable["eval.json"]
-                           + ": closed-loop results skipped.")
+    if report is None and "eval.json" in ctx.unreadable:  # there, but broken: say so in place
+        return [Section(title, blocks=[ctx.note(ctx.unreadable["eval.json"]
+                                                + ": closed-loop results skipped.")])]
     if report is None:
         return ctx.missing(title, "No `eval.json` (from `clonedrive evaluate`): closed-loop "
                                   "results skipped.")
@@ -94,8 +94,9 @@ def _maps(ctx: ReportContext, runs: list[dict], eval_dir: Path) -> list:
         if source and (eval_dir / source).is_file():
             path = copy_figure(eval_dir / source, ctx.figures_dir,
                                figure_name(Path(source).stem, "map"))
-            caption = (f"{fmt.run_label(run)}: the driven path coloured by |CTE|; red crosses "
-                       "mark off-road events.")
+            caption = (f"{fmt.run_label(run)}: the driven path coloured by |CTE| (the scale "
+                       "tops out just above the run's largest); red crosses mark off-road "
+                       "events, blue arrows the driving direction.")
             if run.get("unseen"):
                 unseen.append(Figure(path, caption))
             else:

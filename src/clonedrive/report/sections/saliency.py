@@ -1,26 +1,47 @@
-"""7. Where the network looks: VisualBackProp (:mod:`clonedrive.model.saliency`) on the frames the
-network saw when the car left the road, and on an ordinary frame for comparison.
+"""Where the network looks: VisualBackProp (:mod:`clonedrive.model.saliency`) on the frames the
+network saw when the car left the road and on an ordinary frame for comparison, and the
+overlays ``clonedrive saliency`` already wrote into the run folder (``saliency.json`` in
+``RUN_DIR/saliency/``, the training folder's ``saliency/`` or another folder one level down).
 """
 
 from __future__ import annotations
 
-from clonedrive.report.context import SECTION_TITLES, ReportContext, read_image_or_none
+from pathlib import Path
+
+from clonedrive.report import formatting as fmt
+from clonedrive.report.context import (
+    SECTION_TITLES,
+    ReportContext,
+    read_image_or_none,
+    read_json_or_none,
+)
 from clonedrive.report.document import Figure, Paragraph, Section
 
 #: Off-road frames shown at most (the first ones).
 MAX_EVENT_FRAMES = 5
+#: Overlays from ``clonedrive saliency`` shown at most (the first of its ``saliency.json``).
+MAX_WRITTEN_OVERLAYS = 6
 
 
 def build(ctx: ReportContext) -> list[Section]:
     title = SECTION_TITLES["saliency"]
+    computed, reason = _computed(ctx)
+    written = _written(ctx)
+    if not computed and not written:
+        return ctx.missing(title, reason)
+    return [Section(title, blocks=computed + written)]
+
+
+def _computed(ctx: ReportContext) -> tuple[list, str]:
+    """VisualBackProp on the run's own frames now: (blocks, why there are none)."""
     train = ctx.parts.train_dir
     model_path = train / "model.keras" if train else None
     if model_path is None or not model_path.is_file():
-        return ctx.missing(title, "No `model.keras`: no saliency maps.")
+        return [], "No `model.keras`: no saliency maps."
     frames = _frames(ctx)
     if not frames:
-        return ctx.missing(title, "No frame to look at: neither off-road frames in the "
-                                  "evaluation nor a recording.")
+        return [], ("No frame to look at: neither off-road frames in the evaluation nor a "
+                    "recording, and no overlays from `clonedrive saliency` in the run folder.")
     import numpy as np
 
     from clonedrive.drivers.network import load_model
@@ -30,7 +51,7 @@ def build(ctx: ReportContext) -> list[Section]:
     try:
         saliency = VisualBackProp(load_model(model_path))
     except ValueError as error:
-        return ctx.missing(title, f"No saliency maps: {error}.")
+        return [], f"No saliency maps: {error}."
     images = np.stack([image for _, image in frames])
     masks = saliency.masks(images)
     panels = []
@@ -48,8 +69,62 @@ def build(ctx: ReportContext) -> list[Section]:
         + (f"The first {events} off-road frame(s) are shown above an ordinary frame: compare "
            "what lit up when the car left the road with what lights up when it drives well."
            if events else "No tyre left the road; an ordinary frame is shown."))
-    return [Section(title, blocks=[Paragraph(text), Figure(path, "Each frame beside its "
-                                                                 "VisualBackProp overlay.")])]
+    return [Paragraph(text), Figure(path, "Each frame beside its VisualBackProp overlay.")], ""
+
+
+def _written(ctx: ReportContext) -> list:
+    """The overlays ``clonedrive saliency`` wrote into the run folder, as one figure."""
+    from clonedrive.report.plots import Panel, panel_grid
+
+    for folder in _saliency_folders(ctx):
+        listing = read_json_or_none(folder / "saliency.json", ctx.unreadable)
+        entries = listing.get("frames") if isinstance(listing, dict) else None
+        panels = [panel for panel in map(lambda e: _written_panel(folder, e), entries or [])
+                  if panel is not None][:MAX_WRITTEN_OVERLAYS]
+        if not panels:
+            continue
+        where = fmt.relative(folder, ctx.parts.run_dir)
+        path = panel_grid([Panel(image, label) for label, image in panels],
+                          ctx.figures_dir / "saliency_written.png", columns=3,
+                          title=f"overlays from clonedrive saliency ({where})")
+        text = (f"`clonedrive saliency` wrote {len(entries)} overlay(s) into `{where}`; the "
+                f"first {len(panels)} are shown, each titled with the frame it was made from "
+                "and the steering the network predicted for it.")
+        return [Paragraph(text), Figure(path, f"VisualBackProp overlays found in `{where}`.")]
+    return []
+
+
+def _saliency_folders(ctx: ReportContext) -> list[Path]:
+    """Folders holding a ``saliency.json``: the run's and the training folder's ``saliency/``
+    first, then any other folder one level down."""
+    run, train = ctx.parts.run_dir, ctx.parts.train_dir
+    preferred = [run / "saliency"] + ([train / "saliency"] if train else [])
+    others = sorted(path.parent for path in run.glob("*/saliency.json"))
+    folders = []
+    for folder in preferred + others:
+        listing = folder / "saliency.json"
+        if folder not in folders and listing.is_file() and not listing.is_symlink():
+            folders.append(folder)
+    return folders
+
+
+def _written_panel(folder: Path, entry) -> tuple[str, object] | None:
+    """(label, overlay image) for one ``saliency.json`` entry, or None for an entry that names
+    anything but a plain picture file in ``folder`` itself."""
+    name = entry.get("overlay") if isinstance(entry, dict) else None
+    if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
+        return None
+    path = folder / name
+    if path.is_symlink() or not path.is_file():
+        return None
+    image = read_image_or_none(path)
+    if image is None:
+        return None
+    steering = entry.get("steering")
+    label = Path(str(entry.get("source", name))).name
+    if isinstance(steering, int | float):
+        label += f"\nsteering {steering:+.2f}"
+    return label, image
 
 
 def _frames(ctx: ReportContext) -> list[tuple[str, object]]:

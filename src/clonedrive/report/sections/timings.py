@@ -1,4 +1,4 @@
-"""8. Run timings: the stages' wall-clock times from ``demo.json``.
+"""Run timings: the stages' wall-clock times from ``demo.json``.
 """
 
 from __future__ import annotations

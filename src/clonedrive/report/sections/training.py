@@ -1,4 +1,4 @@
-"""4. Training: the settings, the split and what it means, the loss per epoch.
+"""Training: the settings, the split and what it means, the loss per epoch.
 """
 
 from __future__ import annotations

@@ -5,4 +5,4 @@ first needed (:mod:`clonedrive.keras_backend`), and the Gymnasium environments r
 :mod:`clonedrive.envs` is imported.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

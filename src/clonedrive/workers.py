@@ -10,14 +10,9 @@ their results in task order. It sits in the bottom layer and imports nothing of 
 Why results are identical with 1 worker, N workers and Ray: the batches are cut from the
 episode list before anything runs (never by which worker is free), every batch runs in a
 **fresh process** (``maxtasksperchild=1``; Ray: ``max_calls=1``) with one compute thread, and
-every episode is seeded by the suite. A fresh process mattered when it was chosen: Panda3D's
-software renderer left a few edge pixels of a new offscreen buffer depending on the buffers made
-before it in the process (measured then: 2 of 4,608 pixels differed between the first and second
-simulator of a process), and a network's steering, and so the whole drive, can follow such a
-pixel. Since scenes draw in a fixed order (:mod:`clonedrive.sim.scene`), a check on 2026-12-03
-found no such pixel (three simulators in one process, lake and mountain, three cameras, two
-frames each). The fresh process stays: nothing a task leaves behind (caches of tracks and scenes,
-PyTorch's thread count) can reach the next one.
+every episode is seeded by the suite. A fresh process per task means nothing a task leaves
+behind (caches of tracks and scenes, PyTorch's thread count, the renderer's buffers) can reach
+the next one, and a network's steering, and so the whole drive, can follow a single pixel.
 """
 
 from __future__ import annotations

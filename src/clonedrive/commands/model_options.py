@@ -33,8 +33,7 @@ def add_steering_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--steering-hold", type=float, default=0.0, metavar="H",
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
-                             "delay; 0.02 measured best with --mirror-average, README; 0 = off, as "
-                             "drive.py)")
+                             "delay; 0 = off, as drive.py)")
     parser.add_argument("--mirror-average", action="store_true",
                         help="predict on each frame and on its mirror image and average the "
                              "two (mirrored steering negated): cancels the part of the "

@@ -26,7 +26,7 @@ DESCRIPTION = (
 #: Example command lines, shown at the end of ``clonedrive train --help``.
 EXAMPLES = (
     "clonedrive train data/middle data/weave --out runs/x",
-    "clonedrive train --recipe runs/demo/data/recipe.toml --model fast --epochs 6 --out runs/y",
+    "clonedrive train --recipe runs/demo/recipe.toml --model fast --epochs 6 --out runs/y",
 )
 
 
@@ -78,8 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed-loss", default=given, choices=SPEED_LOSSES,
                         help=f"the speed head's loss (default {d.speed_loss}); censored: a "
                              "label at the top speed (every straight) means 'at least that', so "
-                             "predicting above it costs nothing (measured 2026-12-01: no faster "
-                             "laps than mse; see model/losses.py)")
+                             "predicting above it costs nothing")
     parser.add_argument("--speed-headroom", type=float, default=given, metavar="H",
                         help=f"speed labels at the top speed (every straight) continue the "
                              f"expert's braking profile above it, up to H times it, H in [1, 2] "

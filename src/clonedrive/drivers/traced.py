@@ -2,13 +2,7 @@
 
 On the PyTorch backend Keras 3 runs every layer call through Python bookkeeping (names, dtype
 policies, masks, the functional graph). For our small networks that costs more than the
-arithmetic. Measured 2026-12-01 on the 2-core machine, quiet, 2 threads:
-
-| model | frames | ``predict_on_batch`` | traced |
-|---|---|---|---|
-| ``fast`` | 1 | 6.2 ms | 0.8 ms |
-| ``fast`` | 8 | 7.7 ms | 3.4 ms |
-| ``seed`` | 1 | 12.4 ms | 5.9 ms |
+arithmetic, which a trace leaves out.
 
 :class:`TracedForward` traces the model (``torch.jit.trace`` of the Keras model, itself a
 ``torch.nn.Module``) once per batch size, since a trace records its shapes. It trusts a trace only

@@ -375,10 +375,7 @@ class Runner:
         cameras draw, then every car's step is finished (each car's step is what it is alone:
         the cars do not meet). The Python of the physics and of the rules then runs together
         instead of between frames, where the renderer has just pushed it out of the CPU's
-        caches. Measured on 2 cores, medians of alternating pairs against one car at a time:
-        8 cars without a network 1.06x (8 pairs), the steady loop of evaluate's 8 cars with
-        the network beside it 1.03x (6 pairs), a whole evaluation of them 1.14x (6 pairs,
-        0.87-1.21: this machine's noise)."""
+        caches."""
         for car in cars:
             self.episodes[car].begin(*decided[car])
         for car in cars:

@@ -178,8 +178,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     bar = progress_bar(total=sum(expected), unit="step", desc="evaluate", enabled=progress)
     try:
         if workers == 1 or len(groups) == 1:
-            # With video, half the cores go to the encoder (ffmpeg) and the HUD; measured on 2
-            # cores: 0.93 of the steps/s without video, against 0.51-0.74 with PyTorch on both.
+            # With video, half the cores go to the encoder (ffmpeg) and the HUD, not PyTorch.
             # Without video, a group of two or more cars overlaps its network with rendering
             # (Runner's overlap): the network decides for one half of the cars on a second
             # thread, with one PyTorch thread, while the other half renders on this one.

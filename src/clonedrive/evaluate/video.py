@@ -8,13 +8,10 @@ complete, so a video on disk is never half-written.
 Encoding runs off the caller's loop: :class:`VideoWriter` hands frames to a feeder thread (a
 bounded queue, so memory stays bounded) that composes them, if given a callable, and pipes
 them to ffmpeg, which encodes in its own process. The defaults are x264's ``ultrafast``
-preset at imageio's quality 5 (CRF 25). Measured on 450 640x320 HUD frames of lake: 4.8 ms of
-ffmpeg CPU and 14.5 kB per frame, against 13.9 ms and 26.7 kB for ``veryfast`` at quality 7
-(CRF 15, the earlier default) and 12.0 ms and 10.8 kB for ``veryfast`` at quality 5; the
-stills look alike. Encoding shares the CPU with driving, so its cost is the evaluation's.
+preset at imageio's quality 5 (CRF 25), the cheapest in CPU of the settings whose stills look
+alike. Encoding shares the CPU with driving, so its cost is the evaluation's.
 
-Two things halve ffmpeg's share (measured on 600 640x320 lake HUD frames, another machine: 2.23
-ms of ffmpeg CPU per frame, 1.74 with one encoder thread, 1.20 with one thread and YUV input):
+Two things cut ffmpeg's share:
 
 - frames of even size are converted to YUV 4:2:0 on the feeder thread (OpenCV, BT.601 limited
   range as ffmpeg's own converter; 0.05-0.12 ms a frame, outside Python's lock) and piped as

@@ -21,7 +21,7 @@ How it stays fast in a software renderer:
   vertex colours with the lighting (the camera is always on the road); the sky is an opaque
   vertex-coloured cylinder at ~0.93 :data:`FAR_M` that also hides the far plane;
 - textures are small, nearest-neighbour sampled with mipmaps (the software renderer ignores
-  bilinear filtering: measured identical output).
+  bilinear filtering: the output is identical).
 
 Frames are the same for the same pose in every scene of a track: the opaque geometry is drawn in
 scene-graph order (:data:`DRAW_BIN`, unsorted), not in Panda3D's default state-sorted order. That
@@ -29,8 +29,7 @@ order follows the addresses of render states in memory, and where two surfaces l
 (a kerb on the road) it decides which one shows: a second scene of the same track in the same
 process drew a few pixels of its first frame differently, and so drove differently.
 
-Measured with ``benchmarks/render.py`` (3 cameras, 320x160, full scenery): lake ~970 and
-mountain ~770 camera frames per CPU second on the 2-core development machine.
+``benchmarks/render.py`` measures how fast scenes render.
 """
 
 from __future__ import annotations
@@ -200,8 +199,8 @@ def texture_rgb(texture) -> np.ndarray:
 
     width, height = texture.get_x_size(), texture.get_y_size()
     # Panda3D keeps 8-bit colour in RAM as BGR(A), bottom row first. OpenCV swaps the channels
-    # and flips the rows in two passes of C code: about 8x faster than get_ram_image_as("RGB")
-    # plus a NumPy flip (17 vs 139 us per 320x160 frame, measured), the same pixels.
+    # and flips the rows in two passes of C code, faster than get_ram_image_as("RGB") plus a
+    # NumPy flip, with the same pixels.
     bgr = np.frombuffer(texture.get_ram_image(), dtype=np.uint8).reshape(height, width, -1)
     code = cv2.COLOR_BGR2RGB if bgr.shape[2] == 3 else cv2.COLOR_BGRA2RGB
     return cv2.flip(cv2.cvtColor(bgr, code), 0)

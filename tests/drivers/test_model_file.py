@@ -217,7 +217,7 @@ def test_a_lambda_that_does_more_than_scale_is_not_guessed(tmp_path: Path, stude
     code = python36_lambda_code(names=("tf", "image", "resize_images"))
     path = write_keras2_h5(tmp_path / "model.h5", student, lambda_code=code)
     with pytest.raises(ValueError, match=r"Lambda 'lambda_1' uses image, resize_images, tf.*"
-                                         r"README"):
+                                         r"docs/udacity.md"):
         load_model(path, trust=True)
     # The documented way out: say what the Lambda computes.
     model = legacy_keras.rebuild(path, normalisation=(1 / 255.0, -0.5))

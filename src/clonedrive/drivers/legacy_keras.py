@@ -21,7 +21,7 @@ cannot run that: ``marshal`` fails, or worse, loads garbage.
 A Lambda is recognised from the constants in its bytecode (:data:`NORMALISATIONS`: ``x / 255 -
 0.5``, ``x / 127.5 - 1``, ``x / 128 - 1``, ``x / 255``); one that calls anything (resizing,
 colour conversion: ``tf``, ``K``, ``resize``...) is not rebuilt. The way out then, documented
-in the README: rebuild the network in Python with built-in layers (``Rescaling``, ``Resizing``)
+in docs/udacity.md: rebuild the network in Python with built-in layers (``Rescaling``, ``Resizing``)
 and the same layer names, and call :func:`rebuild` with ``normalisation=(scale, offset)``, or
 load the weights into your own model with ``load_weights_by_name``.
 """
@@ -209,7 +209,7 @@ def lambda_normalisation(name: str, text: str, path: Path) -> tuple[float, float
     if names:
         raise ModelFileError(
             f"{path}: Lambda {name!r} uses {', '.join(sorted(names))}: it does more than scale "
-            "pixels, so it cannot be rebuilt without running its code (see the README, "
+            "pixels, so it cannot be rebuilt without running its code (see docs/udacity.md, "
             "'Students' models', for the way out)"
         )
     constants = code_constants(raw)
@@ -219,7 +219,7 @@ def lambda_normalisation(name: str, text: str, path: Path) -> tuple[float, float
     raise ModelFileError(
         f"{path}: Lambda {name!r} is not a recognised normalisation (looked for "
         f"{'; '.join(item[3] for item in NORMALISATIONS)}), so it cannot be rebuilt without "
-        "running its code (see the README, 'Students' models', for the way out)"
+        "running its code (see docs/udacity.md, 'Students' models', for the way out)"
     )
 
 
@@ -286,7 +286,7 @@ def _sequential_layers(config: dict, path: Path) -> tuple[list, str | None]:
     if class_name != "Sequential":
         raise ModelFileError(
             f"{path}: a {class_name} model; only Sequential student models can be rebuilt "
-            "(see the README, 'Students' models', for the way out)"
+            "(see docs/udacity.md, 'Students' models', for the way out)"
         )
     if isinstance(body, list):  # Keras 1 and early Keras 2
         return body, None

@@ -3,7 +3,7 @@ one subsection per bench run found, with its success and lap-time plots.
 
 A run folder's bench runs are ``RUN_DIR/bench.json``, ``RUN_DIR/bench/bench.json`` and
 ``RUN_DIR/bench/<name>/bench.json`` (for example one run at drive.py parity and one with curve
-slowing, as the README shows).
+slowing, as docs/benchmark.md shows).
 """
 
 from __future__ import annotations

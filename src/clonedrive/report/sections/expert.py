@@ -19,6 +19,9 @@ RATIOS = (
     ("lateral_accel_rms_mps2_ratio", "lat. accel RMS"),
     ("lateral_jerk_mps3_ratio", "lat. jerk"),
 )
+#: The ratios the report's summary names: (key, label).
+HEADLINE = (("lap_time_ratio", "lap time"), ("steering_rate_per_s_ratio", "steering rate"),
+            ("lateral_jerk_mps3_ratio", "lateral jerk"))
 #: The project's targets for a calm driver at speed, as ratios to the expert: (key, mean at
 #: most, no run above). A ratio with no entry has no target.
 TARGETS = {
@@ -74,10 +77,11 @@ def build(ctx: ReportContext) -> list[Section]:
         tuple(rows), align="lrrr" + "r" * len(RATIOS) + "rr", total_rows=(len(rows) - 1,)),
         Paragraph("What the means say (1.0 = the expert's figure on the same tracks and caps):"),
         Bullets(tuple(_meaning(key, name, means[key], compared) for key, name in RATIOS))]
-    if means["lap_time_ratio"] is not None or means["steering_rate_per_s_ratio"] is not None:
-        ctx.headline(f"Against the expert: lap time {fmt.num(means['lap_time_ratio'])}×, "
-                     f"steering rate {fmt.num(means['steering_rate_per_s_ratio'])}×, lateral "
-                     f"jerk {fmt.num(means['lateral_jerk_mps3_ratio'])}× (mean over runs).")
+    shown = [f"{label} {fmt.num(means[key])}×" for key, label in HEADLINE
+             if means[key] is not None]
+    if shown:
+        ctx.headline(f"Against the expert (1.0 = the expert): {', '.join(shown)} "
+                     "(mean over runs).")
     return [Section(title, blocks=blocks)]
 
 

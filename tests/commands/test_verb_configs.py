@@ -54,9 +54,14 @@ def test_the_demo_trains_the_architectures_the_models_module_builds():
 
 @pytest.mark.parametrize("argv", [["demo", "--epochs", "0"], ["demo", "--unseen", "-2"],
                                   ["video", "FOLDER", "--fps", "-1"],
-                                  ["report", "RUN", "--max-failures", "-1"]])
+                                  ["report", "RUN", "--max-failures", "-1"],
+                                  ["train", "FOLDER", "--out", "RUN/t", "--lr", "inf"],
+                                  ["train", "FOLDER", "--out", "RUN/t", "--lr", "1e30"],
+                                  ["train", "FOLDER", "--out", "RUN/t", "--lr", "nan"],
+                                  ["train", "FOLDER", "--out", "RUN/t", "--dropout", "nan"]])
 def test_a_bad_option_is_one_line_and_status_2(argv, tmp_path, capsys):
-    argv = [str(tmp_path) if arg in ("FOLDER", "RUN") else arg for arg in argv]
+    argv = [str(tmp_path) if arg in ("FOLDER", "RUN") else arg.replace("RUN/", f"{tmp_path}/")
+            for arg in argv]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"clonedrive {argv[0]}: ") and len(err.strip().splitlines()) == 1

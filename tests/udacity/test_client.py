@@ -314,3 +314,19 @@ def test_a_server_refusing_the_websocket_is_named(tmp_path: Path) -> None:
         with pytest.raises(DriveServerError, match=r"HTTP 400.*python-engineio"):
             SimulatorClient(config).connect()
         thread.join(5)
+
+
+@pytest.mark.parametrize("raw", ["1_0", "nan", "inf", "-Infinity", "0x1p-2", "1.0.0", "", " "])
+def test_a_steer_reply_the_simulator_would_not_parse_is_refused(raw: str) -> None:
+    """Python's float() reads "1_0" as 10.0; the simulator's parser would not."""
+    from clonedrive.udacity.client import DriveServerError, parse_steer
+
+    with pytest.raises(DriveServerError, match="not a number|not finite"):
+        parse_steer([{"steering_angle": raw, "throttle": "0.2"}])
+
+
+def test_a_plain_steer_reply_is_read() -> None:
+    from clonedrive.udacity.client import parse_steer
+
+    controls = parse_steer([{"steering_angle": "-0.125", "throttle": "3E-01"}])
+    assert (controls.steering, controls.throttle) == (-0.125, 0.3)

@@ -135,7 +135,11 @@ def run(args: argparse.Namespace) -> int:
             source = args.recipe or args.dirs
             if not source:
                 raise ValueError("nothing to train on: give --recipe FILE or DIR [DIR ...]")
-        config = dataclasses.replace(base, **_overrides(args))
+        try:
+            config = dataclasses.replace(base, **_overrides(args))
+        except ValueError as error:  # a bad option: refused before anything is read
+            print(f"clonedrive train: {error}", file=sys.stderr)
+            return 2
         result = train(config, source, out, resume=args.resume, progress=not args.json)
     except (ValueError, FileNotFoundError, FileExistsError) as error:
         print(f"clonedrive train: {error}", file=sys.stderr)

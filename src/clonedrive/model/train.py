@@ -66,6 +66,10 @@ SLOWING_LABEL_MPH = 28.5
 CACHE_FILE = "image_cache.u8"
 
 
+#: The largest learning rate training accepts: above it Adam only diverges.
+MAX_LEARNING_RATE = 1.0
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """Training settings; defaults are the write-up's."""
@@ -108,8 +112,11 @@ class TrainConfig:
             raise ValueError("batch_size and epochs must be >= 1")
         if not 0.0 < self.val_fraction < 1.0:
             raise ValueError(f"val_fraction must be in (0, 1), got {self.val_fraction}")
-        if not self.learning_rate > 0:
-            raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity
+            raise ValueError(f"learning_rate must be in (0, {MAX_LEARNING_RATE:g}], got "
+                             f"{self.learning_rate}")
+        if not 0.0 <= self.dropout < 1.0:  # also NaN
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:
             raise ValueError("early_stopping_patience must be >= 1 or None")
         if not (self.speed_loss_weight >= 0 and math.isfinite(self.speed_loss_weight)):

@@ -26,6 +26,7 @@ import contextlib
 import json
 import logging
 import math
+import re
 import socket
 import time
 from dataclasses import dataclass, field
@@ -380,14 +381,18 @@ def parse_steer(args: list) -> Controls:
         if not isinstance(raw, str):
             raise DriveServerError(
                 f"steer field {key!r} is {raw!r}: the Udacity simulator needs it as a string")
-        try:
-            value = float(raw)
-        except ValueError:
-            raise DriveServerError(f"steer field {key!r} is not a number: {raw!r}") from None
+        if not _REPLY_NUMBER.fullmatch(raw.strip()):  # Python's float() also takes "1_0", "nan"
+            raise DriveServerError(f"steer field {key!r} is not a number: {_preview(raw)}")
+        value = float(raw)
         if not math.isfinite(value):
             raise DriveServerError(f"steer field {key!r} is not finite: {raw!r}")
         values[key] = value
     return Controls(steering=values["steering_angle"], throttle=values["throttle"])
+
+
+#: A number as the simulator's ``float.Parse`` reads a reply: digits, one decimal point, an
+#: exponent; no digit separators ("1_0"), no words ("nan", "inf").
+_REPLY_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 
 
 def _preview(value: object, limit: int = 80) -> str:

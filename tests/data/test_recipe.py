@@ -120,6 +120,16 @@ def test_recipe_to_toml_round_trips(tmp_path: Path) -> None:
     assert parse_recipe(recipe_to_toml(recipe)).recordings == recipe.recordings
 
 
+def test_names_with_newlines_and_control_characters_round_trip(tmp_path: Path) -> None:
+    """A folder named with a newline (or a tab, or DEL) is written escaped, in the values and in
+    the header comment, so ``train --resume`` and ``dagger`` read the recipe back."""
+    odd = tmp_path / "line\nbreak\tand\x7fdel"
+    recipe = Recipe((RecordingSpec(path=odd, name="a\nname"),), source=str(odd / "r.toml"))
+    text = recipe_to_toml(recipe)
+    assert "\n[[recording]]" in text and "line\nbreak" not in text
+    assert parse_recipe(text).recordings == recipe.recordings
+
+
 def test_writeup_recipe_template(tmp_path: Path) -> None:
     folders = {name: tmp_path / name for name in WRITEUP_FOLDERS}
     assert list(WRITEUP_FOLDERS) == [

@@ -237,7 +237,7 @@ def default_recipe_for(
 
 def recipe_to_toml(recipe: Recipe) -> str:
     """TOML text that :func:`parse_recipe` reads back as ``recipe`` (absolute paths)."""
-    lines = [f"# recipe from {recipe.source}", ""]
+    lines = [f"# recipe from {_toml_string(str(recipe.source))}", ""]
     for spec in recipe.recordings:
         lines += [
             "[[recording]]",
@@ -307,8 +307,17 @@ def _checked(recipe: Recipe) -> Recipe:
 
 
 def _toml_string(text: str) -> str:
-    escaped = text.replace("\\", "\\\\").replace('"', '\\"')
-    return f'"{escaped}"'
+    """A TOML basic string holding ``text`` exactly: backslash, quote and every control
+    character (a newline in a folder name, say) escaped."""
+    out = []
+    for char in text:
+        if char in ('"', "\\"):
+            out.append("\\" + char)
+        elif ord(char) < 0x20 or ord(char) == 0x7F:
+            out.append(f"\\u{ord(char):04x}")
+        else:
+            out.append(char)
+    return '"' + "".join(out) + '"'
 
 
 # --- expansion into samples -----------------------------------------------------------------

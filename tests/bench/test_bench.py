@@ -95,7 +95,7 @@ def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_pa
     shutil.copytree(tmp_path / "w1", tmp_path / "run" / "bench" / "parity")
     result = write_report(tmp_path / "run", tmp_path / "report")
     markdown = result.markdown_path.read_text(encoding="utf-8")
-    section = markdown[markdown.index("\n## Benchmark\n"):]
+    section = markdown[markdown.index(". Benchmark\n"):]
     assert "### `bench/parity`" in section and "| tiny |" in section
     assert "Suite `tiny`" in section
     assert (tmp_path / "report" / "report" / "bench_parity_bench_success.png").is_file()

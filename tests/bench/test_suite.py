@@ -68,3 +68,12 @@ def test_a_copied_suite_can_be_edited(tmp_path):
 def test_bad_suites_say_where(tmp_path, change, message):
     with pytest.raises(SuiteError, match=message):
         load_suite(write(tmp_path, change))
+
+
+def test_suite_text_is_literal_in_the_leaderboard_markdown() -> None:
+    """Suite and model names are the user's text: Markdown in them is shown, not obeyed."""
+    from clonedrive.bench.leaderboard import _markdown_table, _md
+
+    assert _md("a|b *c* <img>\nnext") == "a\\|b \\*c\\* \\<img\\> next"
+    row = _markdown_table(["model"], [["x | y"]])[-1]
+    assert row == "| x \\| y |"

@@ -52,9 +52,19 @@ def tables(report: dict) -> tuple[list[str], list[list[str]], list[str], list[li
     return method_head, method_rows, model_head, model_rows
 
 
+def _md(text: object) -> str:
+    """``text`` as literal Markdown on one line: suite files and model labels are the user's
+    text, and a ``|``, ``*``, ``<`` or newline in them must not restructure the page."""
+    flat = " ".join(str(text).split())
+    return "".join("\\" + char if char in _MARKDOWN_SPECIALS else char for char in flat)
+
+
+_MARKDOWN_SPECIALS = set("\\`*_{}[]<>()#+!|~")
+
+
 def _markdown_table(head: list[str], rows: list[list[str]]) -> list[str]:
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines = ["| " + " | ".join(map(_md, head)) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(map(_md, row)) + " |" for row in rows]
     return lines
 
 
@@ -100,8 +110,8 @@ def plot(report: dict, out: Path) -> list[Path]:
 def markdown(report: dict, images: list[str]) -> str:
     suite = report["suite"]
     method_head, method_rows, model_head, model_rows = tables(report)
-    lines = [f"# Benchmark: suite {suite['id']}", "", suite.get("description", ""), "",
-             f"Speed control: {report['speed_control']}. "
+    lines = [f"# Benchmark: suite {_md(suite['id'])}", "", _md(suite.get("description", "")), "",
+             f"Speed control: {_md(report['speed_control'])}. "
              f"{'Complete.' if report.get('complete') else 'INCOMPLETE: runs still missing.'}",
              "", "## Methods (mean ± std over the models of a method)", ""]
     lines += _markdown_table(method_head, method_rows)
@@ -117,10 +127,10 @@ def markdown(report: dict, images: list[str]) -> str:
                   f"Pearson {_value(offline['vs_interventions_per_km']['pearson'])}, Spearman "
                   f"{_value(offline['vs_interventions_per_km']['spearman'])}."]
     lines += ["", "## Splits", ""]
-    lines += [f"- **{s['name']}**: {s['description']} ({len(s['tracks'])} tracks x "
+    lines += [f"- **{_md(s['name'])}**: {_md(s['description'])} ({len(s['tracks'])} tracks x "
               f"{', '.join(f'{v:g}' for v in s['speeds_mph'])} mph x "
-              f"{', '.join(s['conditions'])})" for s in suite["splits"]]
-    lines += [""] + [f"![{name}]({name})" for name in images] + [""]
+              f"{_md(', '.join(s['conditions']))})" for s in suite["splits"]]
+    lines += [""] + [f"![{_md(name)}]({name})" for name in images] + [""]
     return "\n".join(lines)
 
 

@@ -39,7 +39,8 @@ MEANINGS = {
                                   "frame-to-frame noise in the predictions, so it is far above "
                                   "1 for most networks",
     "lateral_accel_rms_mps2_ratio": "the sideways acceleration passengers feel in bends; "
-                                    "above 1 the network's line through the bends is rougher",
+                                    "above 1 the network's line through the bends is rougher, "
+                                    "below 1 it takes them more gently (often: slower)",
     "lateral_jerk_mps3_ratio": "how suddenly that sideways push changes, which passengers feel "
                                "as jolts; above 1 the ride is jerkier than the expert's",
 }

@@ -54,6 +54,14 @@ _PAGE_HEADERS = (
 )
 
 
+def _single(request: Request, name: str, default: str | None = None) -> str | None:
+    """A header's one value; ``default`` when absent; None (refused) when sent twice."""
+    values = request.headers.get_all(name)
+    if not values:
+        return default
+    return values[0] if len(values) == 1 else None
+
+
 def frame_message(frame: Frame) -> bytes:
     """A frame as the page receives it: length of the state, the state (JSON), the JPEG."""
     state = json.dumps(frame.state, separators=(",", ":")).encode()
@@ -157,7 +165,7 @@ class WebServer:
 
     # ------------------------------------------------------------------ requests
     def _check_request(self, connection: ServerConnection, request: Request) -> Response | None:
-        host = request.headers.get("Host")
+        host = _single(request, "Host")
         if not self.config.host_allowed(host):
             return self._refuse(connection, "host", f"Host {str(host)[:60]!r} does not name "
                                 "this server: open the URL clonedrive web printed")
@@ -170,9 +178,9 @@ class WebServer:
                                 "URL clonedrive web printed (it ends in ?token=...)")
         if url.path == PAGE_PATH:
             return Response(200, "OK", Headers(_PAGE_HEADERS), self._page_html)
-        origin = request.headers.get("Origin")
-        if origin is not None and origin != f"http://{host}":
-            return self._refuse(connection, "origin", f"a page from {origin[:60]!r} may not "
+        origin = _single(request, "Origin", default="")
+        if origin != "" and origin != f"http://{host}":
+            return self._refuse(connection, "origin", f"a page from {str(origin)[:60]!r} may not "
                                 "drive: only this server's own page may")
         if len(self._pages) >= self.config.max_clients:
             return self._refuse(connection, "busy", f"{self.config.max_clients} pages are "

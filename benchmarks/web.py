@@ -11,6 +11,7 @@ wait for the next 1/15 s step, the step, the JPEG, the socket and the browser's 
 draw. ``latency_ms_median`` (target <= 150) and p90.
 
 Run: python benchmarks/web.py [--seconds 20] [--presses 40] [--no-scenery] [--view three]
+[--screenshot docs/images/web.png] (the page at the end of phase 1, as a 96-colour PNG)
 Prints its figures, the 1-minute load average beside them (the CPU may be shared), and ends
 with one JSON line.
 """
@@ -53,6 +54,8 @@ def measure(args: argparse.Namespace) -> dict:
         time.sleep(args.seconds)
         frames_1, wall_1 = page.evaluate("window.clonedrive.frames"), time.monotonic()
         sim_1 = page.evaluate("window.clonedrive.state.time_s")
+        if args.screenshot:
+            save_screenshot(page, args.screenshot)
         page.keyboard.press("1")  # manual: the keys steer
         page.evaluate("window.clonedrive.latencies = []")
         for _ in range(args.presses):
@@ -81,12 +84,23 @@ def measure(args: argparse.Namespace) -> dict:
     }
 
 
+def save_screenshot(page, path: str) -> None:
+    """The page as a PNG of at most 96 colours (small enough to commit)."""
+    import io
+
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(page.screenshot(full_page=True))).convert("RGB")
+    image.quantize(96).save(path, optimize=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="phase 1's wall time")
     parser.add_argument("--presses", type=int, default=40, help="phase 2's key presses")
     parser.add_argument("--view", choices=("center", "three"), default="center")
     parser.add_argument("--no-scenery", action="store_true")
+    parser.add_argument("--screenshot", metavar="PNG", help="save the page there")
     args = parser.parse_args()
     load_before = round(os.getloadavg()[0], 2)
     figures = measure(args)

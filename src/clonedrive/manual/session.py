@@ -660,7 +660,7 @@ class DrivingSession:
                   f"laps {obs.laps}   off-road {obs.off_road_events}"
                   f"{'   OFF ROAD' if obs.off_road else ''}")
         if self.mode == AUTONOMOUS:
-            who = "manual override" if self._taking_over else "it drives"
+            who = "manual override" if self._taking_over else "the pilot drives"
             takeovers = f"   takeovers {self.takeovers}" if self.takeover else ""
             mode = f"AUTONOMOUS ({self._client.name}): {who}{takeovers}"
         else:

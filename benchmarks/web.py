@@ -3,7 +3,9 @@ and the key-press-to-changed-frame latency.
 
 A headless Chromium (Debian's, through Playwright) opens the page. Phase 1: the expert drives
 lake with the record toggle on for ``--seconds`` of wall-clock time; ``frames_per_s`` = frames
-the page drew / wall seconds (target >= 15, the simulation's rate). Phase 2, still recording,
+the page drew / wall seconds (target >= 15, the simulation's rate); ``frames_drawn_fraction``
+= frames drawn / frames the server made meanwhile (1: none skipped); ``sim_realtime_ratio`` =
+simulated / wall seconds (1: the session kept its 15 Hz). Phase 2, still recording,
 manual mode: ``--presses`` times, a steering key goes down, then up; each key message's
 latency is from the page's key handler to the page having drawn the first frame rendered after
 the session applied that key (the frame reports the last input it applied), so it holds the
@@ -51,9 +53,11 @@ def measure(args: argparse.Namespace) -> dict:
         page.wait_for_function("window.clonedrive.state.recording", timeout=60_000)
         frames_0, wall_0 = page.evaluate("window.clonedrive.frames"), time.monotonic()
         sim_0 = page.evaluate("window.clonedrive.state.time_s")
+        made_0 = page.evaluate("window.clonedrive.state.frame")
         time.sleep(args.seconds)
         frames_1, wall_1 = page.evaluate("window.clonedrive.frames"), time.monotonic()
         sim_1 = page.evaluate("window.clonedrive.state.time_s")
+        made_1 = page.evaluate("window.clonedrive.state.frame")
         if args.screenshot:
             save_screenshot(page, args.screenshot)
         page.keyboard.press("1")  # manual: the keys steer
@@ -72,6 +76,7 @@ def measure(args: argparse.Namespace) -> dict:
     latencies.sort()
     return {
         "frames_per_s": round((frames_1 - frames_0) / (wall_1 - wall_0), 2),
+        "frames_drawn_fraction": round((frames_1 - frames_0) / max(made_1 - made_0, 1), 3),
         "sim_realtime_ratio": round((sim_1 - sim_0) / (wall_1 - wall_0), 3),
         "latency_ms_median": round(statistics.median(latencies), 1),
         "latency_ms_p90": round(latencies[int(0.9 * (len(latencies) - 1))], 1),
@@ -106,7 +111,8 @@ def main() -> None:
     figures = measure(args)
     figures["load_1min_before"] = load_before
     print(f"frames/s delivered while recording: {figures['frames_per_s']} (target >= 15); "
-          f"simulated s per wall s {figures['sim_realtime_ratio']}")
+          f"simulated s per wall s {figures['sim_realtime_ratio']}; frames drawn / made "
+          f"{figures['frames_drawn_fraction']}")
     print(f"key-press-to-frame latency: median {figures['latency_ms_median']} ms, p90 "
           f"{figures['latency_ms_p90']} ms over {figures['latency_samples']} key messages "
           "(target median <= 150)")

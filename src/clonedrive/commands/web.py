@@ -9,39 +9,28 @@ from clonedrive.commands.model_options import add_model_arguments, load_policy_f
 from clonedrive.commands.record import add_log_format_arguments
 
 HELP = "drive, watch, record and take over from a browser page (headless servers too)"
-DESCRIPTION = """\
-Serve one page that shows the simulator live (the center camera or all three, 15 frames/s, with
-the window's HUD) and drives it: keyboard (W/S, A/D, arrows), mouse or finger on the picture,
-a browser gamepad. Modes: manual, the expert autopilot, a model (--model, any file `clonedrive
-drive` accepts) and model with takeover: touching any control takes the car, letting go hands
-it back; each takeover is counted and, while recording, only the person's rows are recorded
-(HG-DAgger labels for `clonedrive dagger --human`). The record toggle writes an ordinary
-Udacity-format recording (driving_log.csv, IMG/, config.json) into --out.
-
-Binds 127.0.0.1 and prints the page's URL with a random token; requests without the token,
-WebSockets from other sites' pages and unknown Host names are refused."""
-EPILOG = """\
-examples:
-  clonedrive web --track lake --out data/web
-  clonedrive web --model runs/pilotnet/model.keras --port 8888"""
-
-
-class _Help(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
-    """Paragraphs and examples as written; "(default: ...)" except on flags and None."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        text = action.help or ""
-        if action.nargs == 0 or action.default is None or "default" in text:
-            return text
-        return super()._get_help_string(action)
+DESCRIPTION = (
+    "Serve one page that shows the simulator live (the center camera or all three, 15 frames/s, "
+    "with the window's HUD) and drives it: keyboard (W/S, A/D, arrows), mouse or finger on the "
+    "picture, a browser gamepad. Modes: manual, the expert autopilot, a model (--model, any "
+    "file `clonedrive drive` accepts) and model with takeover: touching any control takes the "
+    "car, letting go hands it back; each takeover is counted and, while recording, only the "
+    "person's rows are recorded (HG-DAgger labels for `clonedrive dagger --human`). The record "
+    "toggle writes an ordinary Udacity-format recording (driving_log.csv, IMG/, config.json) "
+    "into --out. Binds 127.0.0.1 and prints the page's URL with a random token; requests "
+    "without the token, WebSockets from other sites' pages and unknown Host names are refused."
+)
+#: Example command lines, shown at the end of ``clonedrive web --help``.
+EXAMPLES = (
+    "clonedrive web --track lake --out data/web   # then open the printed URL",
+    "clonedrive web --model runs/x/model.keras --port 8888",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from clonedrive.web.app import WebSession
     from clonedrive.web.config import VIEWS, WebConfig
 
-    parser.formatter_class = _Help
-    parser.epilog = EPILOG
     d, s = WebConfig(), WebSession()
     parser.add_argument("--track", default=s.track,
                         help="track to start on (name, gen:<seed> or .json); the page can switch")
@@ -76,8 +65,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:  # TrackError is a ValueError
         return _fail(str(error))
     except OSError as error:
-        return _fail(f"{error.strerror}; is another clonedrive web running? Choose another "
-                     f"port with --port {config.port + 1 if config.port else 8888}")
+        return _fail(error.strerror or str(error))
     if not config.loopback_only:
         print(f"clonedrive web: warning: listening on {config.host}: anyone on the network with "
               "the URL can drive the car and record into --out", file=sys.stderr)

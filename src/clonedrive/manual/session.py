@@ -13,7 +13,8 @@ this runs, and is tested, without a display.
 Modes: ``menu`` (choose a track and direction) -> ``driving`` (a human steers) <->
 ``autonomous`` (a drive server steers, through
 :class:`~clonedrive.udacity.client.SimulatorClient`, exactly as the Udacity simulator's autonomous
-mode; a human holding a steering or throttle key takes over for as long as it is held, and the
+mode; a human takes over for as long as a steering or throttle key is held, a gamepad control is
+moved, or the pointer steers (mouse steering: pressed on the page, inside the window), and the
 server is sent the manual-mode telemetry meanwhile). Recording is independent of the mode.
 Autonomous mode can also be given any :class:`Pilot` (``start_autonomous(pilot)``: the expert or a
 model in this process, as ``clonedrive web`` does), with or without takeover; each takeover is

@@ -29,17 +29,20 @@ class WebSession:
 
 
 def check_port(host: str, port: int) -> None:
-    """Raise OSError (naming the address) when ``host:port`` cannot be listened on."""
+    """Raise OSError, saying what to do, when ``host:port`` cannot be listened on."""
+    import errno
     import socket
 
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as probe:
-        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            probe.bind((host, port))
-        except OSError as error:
-            raise OSError(error.errno, f"cannot listen on {host}:{port}: "
-                          f"{error.strerror or error}") from None
+    try:
+        with socket.create_server((host, port)):
+            return
+    except OSError as error:
+        if error.errno == errno.EADDRINUSE:
+            raise OSError(error.errno, f"port {port} on {host} is already in use (another "
+                          "clonedrive web?); choose another with --port, e.g. --port "
+                          f"{port + 1}") from None
+        raise OSError(error.errno, f"cannot listen on {host}:{port}: "
+                      f"{error.strerror or error}") from None
 
 
 class WebApp:

@@ -120,3 +120,19 @@ def test_an_oversized_message_closes_only_that_connection(web_app):
 
     assert asyncio.run(oversized()) == 1009
     assert socket_status(web_app.server.port) == 101  # the server keeps serving
+
+
+def test_a_track_that_fails_to_load_leaves_the_car_where_it_was(web_app):
+    async def choose_bad_track() -> dict:
+        async with connect(f"ws://127.0.0.1:{web_app.server.port}/ws?token={TOKEN}") as ws:
+            await ws.send('{"type": "track", "track": "gen:not-a-seed"}')
+            while True:
+                message = await asyncio.wait_for(ws.recv(), 60)
+                if isinstance(message, bytes):
+                    length = int.from_bytes(message[:4], "big")
+                    state = json.loads(message[4:4 + length])
+                    if "cannot load track" in state["message"]:
+                        return state
+
+    state = asyncio.run(choose_bad_track())
+    assert state["track"] == "lake" and "gen:not-a-seed" in state["message"]

@@ -7,6 +7,7 @@ import sys
 
 from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
 from clonedrive.commands.record import add_log_format_arguments
+from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "drive, watch, record and take over from a browser page (headless servers too)"
 DESCRIPTION = (
@@ -33,7 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     d, s = WebConfig(), WebSession()
     parser.add_argument("--track", default=s.track,
-                        help="track to start on (name, gen:<seed> or .json); the page can switch")
+                        help=f"track to start on: {TRACK_NAMES_HELP} (the page can switch)")
     parser.add_argument("--reverse", action="store_true", help="start driving backwards")
     parser.add_argument("--look", default=s.look,
                         help="scene look to start in (clear, or a recording look: record --look)")

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from clonedrive.manual.session import AUTONOMOUS, DrivingSession
+from clonedrive.manual.session import AUTONOMOUS, MENU, DrivingSession
 from clonedrive.web.config import EXPERT, MANUAL, MODEL, TAKEOVER, WebConfig
 from clonedrive.web.messages import Command
 
@@ -54,6 +54,7 @@ class Controller:
         self._laps_seen = 0
         self._lap_start_s = 0.0
         self._last_lap_s: float | None = None
+        self._opened: tuple[str, bool] | None = None  #: the track last driven, and direction
         self.set_look(self.look)
         session.choose(track, reverse=reverse)
 
@@ -156,8 +157,12 @@ class Controller:
         obs = self.session.step()
         if self.session.mode != AUTONOMOUS:
             self.pilot_mode = MANUAL  # the session left autonomous mode (a track change...)
+        if obs is None and self._opened is not None and self.session.mode == MENU \
+                and not self.session.loading:
+            obs = self._reopen()
         if obs is None or "center" not in obs.images:
             return None
+        self._opened = (self.session.track_name, self.session.reverse)
         self._track_laps(obs)
         self.frames += 1
         return Frame(self.frames, self._jpeg(obs.images), self.state())
@@ -187,6 +192,14 @@ class Controller:
                     next_tick = time.monotonic()  # behind: do not try to catch up
         finally:
             self.session.close()
+
+    def _reopen(self):
+        """A chosen track failed to load: back to the one driven before, saying why."""
+        failure = self.session.message
+        self.session.choose(*self._opened[:1], reverse=self._opened[1])
+        obs = self.session.step()
+        self.session.message = failure
+        return obs
 
     def _track_laps(self, obs) -> None:
         if obs.laps < self._laps_seen or obs.time_s < self._lap_start_s:  # a new track

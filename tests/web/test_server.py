@@ -136,3 +136,38 @@ def test_a_track_that_fails_to_load_leaves_the_car_where_it_was(web_app):
 
     state = asyncio.run(choose_bad_track())
     assert state["track"] == "lake" and "gen:not-a-seed" in state["message"]
+
+
+def test_bytes_that_are_not_http_are_dropped_and_the_server_keeps_serving(web_app):
+    import socket
+
+    port = web_app.server.port
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as raw:
+        raw.sendall(b"\x16\x03\x01\x02\x00 not HTTP at all\r\n\r\n" + bytes(range(256)))
+        raw.shutdown(socket.SHUT_WR)
+        while raw.recv(4096):  # whatever it answers, it closes the connection
+            pass
+    assert get(port, f"/?token={TOKEN}")[0] == 200
+
+
+def test_the_look_and_view_pickers_reopen_the_track_and_widen_the_picture(web_app):
+    import cv2
+    import numpy as np
+
+    async def pick() -> tuple[dict, np.ndarray]:
+        async with connect(f"ws://127.0.0.1:{web_app.server.port}/ws?token={TOKEN}") as ws:
+            await ws.send('{"type": "look", "look": "udacity"}')
+            await ws.send('{"type": "view", "view": "three"}')
+            while True:
+                message = await asyncio.wait_for(ws.recv(), 60)
+                if isinstance(message, bytes):
+                    length = int.from_bytes(message[:4], "big")
+                    state = json.loads(message[4:4 + length])
+                    if state["look"] == "udacity" and state["view"] == "three":
+                        await ws.send('{"type": "view", "view": "center"}')
+                        jpeg = np.frombuffer(message[4 + length:], np.uint8)
+                        return state, cv2.imdecode(jpeg, cv2.IMREAD_COLOR)
+
+    state, picture = asyncio.run(pick())
+    assert state["track"] == "lake"
+    assert picture.shape == (160, 3 * 320, 3)

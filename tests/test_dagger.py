@@ -125,3 +125,44 @@ def test_plain_cloning_records_as_many_labels_as_asked_past_one_lap(tmp_path: Pa
     result = record_plain(config, 1400, tmp_path / "data")
     assert result == {"labels": 1400, "asked": 1400, "noise": 0.0}
     assert len(read_driving_log(tmp_path / "data" / "lake").rows) == 1400
+
+
+def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) -> None:
+    """HG-DAgger: a model drives (here the expert stands in for it), a person takes over; the
+    recording keeps only the person's rows, counts the takeover, and ``dagger`` aggregates it."""
+    from clonedrive.dagger import aggregate_recipe, check_human_recordings
+    from clonedrive.data.recipe import Recipe, expand
+    from clonedrive.manual.session import DrivingSession, ManualConfig
+    from clonedrive.web.pilots import ExpertPilot
+
+    out = tmp_path / "takeovers"
+    with DrivingSession(ManualConfig(scenery=False), out,
+                        sim_config=SimConfig(scenery=False)) as session:
+        session.choose("lake")
+        session.step()
+        assert session.start_autonomous(ExpertPilot(session.sim.track), takeover=True,
+                                        takeover_labels=True)
+        assert session.start_recording()
+        for _ in range(4):
+            session.step()  # the pilot drives: not recorded
+        session.key_down("d")
+        for _ in range(5):
+            session.step()  # the person drives: the labels
+        session.key_up("d")
+        for _ in range(4):
+            session.step()
+        assert session.stop_recording() == 5
+        assert session.takeovers == 1
+    rows = read_driving_log(out / "driving_log.csv", verify_images="exists").rows
+    assert len(rows) == 5 and all(row.steering > 0 for row in rows)
+    entry = json.loads((out / "config.json").read_text())["sessions"][-1]
+    assert entry["rows"] == 5 and entry["takeovers"] == 1
+
+    check_human_recordings([out])
+    with pytest.raises(FileNotFoundError, match="no driving_log.csv"):
+        check_human_recordings([tmp_path])
+    recipe = aggregate_recipe(Recipe((), source="base"), [], [out])
+    assert [spec.name for spec in recipe.recordings] == ["human_1_takeovers"]
+    samples = expand(recipe)
+    assert len(samples.steering) == 10  # the center camera and its mirror image
+    assert DaggerConfig(human=[out]).human == (str(out),)

@@ -17,6 +17,7 @@ VERBS: list[tuple[str, str]] = [
     ("demo", "demo"),
     ("tracks", "tracks"),
     ("sim", "sim"),
+    ("web", "web"),
     ("record", "record"),
     ("check", "check"),
     ("train", "train"),

@@ -27,6 +27,11 @@ iteration ``k = 1..iterations``:
    ``eval_tracks`` and ``eval_unseen`` generated tracks (evaluate's unseen tracks, never used
    for collection; ``iter_k/eval/eval.json``, splits ``builtin`` and ``unseen``).
 
+**Human takeovers** (HG-DAgger, Kelly et al. 2019): ``human`` lists recordings made in
+``clonedrive web``'s takeover mode, where a model drove and a person took the car whenever it
+went wrong; such a recording holds only the person's rows, the labels. They are aggregated with
+the expert's from iteration 1 on (center camera and its mirror image, like them).
+
 Iteration 0 is the base model's evaluation. With ``plain`` the comparison DAgger needs is run
 too: **plain cloning with as many extra expert labels** -- the expert itself drives the same
 tracks (with ``plain_noise`` steering noise, its labels clean) until it has recorded as many
@@ -91,8 +96,11 @@ class DaggerConfig:
     seed: int = 0
     max_seconds: float | None = None  #: cap per episode (quick runs)
     scenery: bool = True
+    #: recordings of a person's takeovers (``clonedrive web``), aggregated from iteration 1
+    human: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "human", tuple(str(folder) for folder in self.human))
         if self.iterations < 1:
             raise ValueError(f"iterations must be at least 1, got {self.iterations}")
         for name in ("beta", "beta_decay"):
@@ -318,14 +326,27 @@ def record_plain(config: DaggerConfig, labels: int, out: Path) -> dict:
     return result
 
 
-def aggregate_recipe(base, folders: Sequence[Path]):
-    """The base recipe plus ``folders`` (center camera and its mirror image each)."""
+def aggregate_recipe(base, folders: Sequence[Path], human: Sequence[str | os.PathLike] = ()):
+    """The base recipe plus ``folders`` (DAgger's own) and ``human`` (a person's takeovers,
+    ``clonedrive web``): center camera and its mirror image each."""
     from clonedrive.data.recipe import Recipe, RecordingSpec
 
     extra = tuple(RecordingSpec(path=Path(folder).absolute(), name=f"{folder.parent.parent.name}"
                                 f"_{folder.name}", cameras="center", flip=True)
                   for folder in folders)
-    return Recipe(base.recordings + extra, source=f"{base.source} + DAgger recordings")
+    extra += tuple(RecordingSpec(path=Path(folder).absolute(), name=f"human_{index}_"
+                                 f"{Path(folder).absolute().name}", cameras="center", flip=True)
+                   for index, folder in enumerate(human, start=1))
+    source = f"{base.source} + DAgger recordings" + (" + human takeovers" if human else "")
+    return Recipe(base.recordings + extra, source=source)
+
+
+def check_human_recordings(folders: Sequence[str | os.PathLike]) -> None:
+    """FileNotFoundError naming a folder that holds no driving log."""
+    for folder in folders:
+        if not (Path(folder) / "driving_log.csv").is_file():
+            raise FileNotFoundError(f"{folder}: no driving_log.csv (a takeover recording of "
+                                    "clonedrive web expected)")
 
 
 def retrain(base_config, recipe, init_from: Path, epochs: int, learning_rate: float, out: Path,
@@ -455,6 +476,7 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
     if not base_model.is_file() or not (base / "recipe.toml").is_file():
         raise FileNotFoundError(f"{base} is not a finished training run (model.keras and "
                                 "recipe.toml expected: clonedrive train --out)")
+    check_human_recordings(config.human)
     out = check_output_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     save_config(config, out / "config.json")
@@ -482,7 +504,7 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
         labels_total += collected["labels"]
         _say(progress, f"[dagger] iteration {iteration}: {collected['labels']} labels, "
                        f"{collected['takeovers']} takeovers; retraining")
-        model = retrain(base_config, aggregate_recipe(base_recipe, folders), model,
+        model = retrain(base_config, aggregate_recipe(base_recipe, folders, config.human), model,
                         config.epochs, config.learning_rate, folder / "train",
                         seed=config.seed + iteration, progress=progress)
         rows.append({"iteration": iteration, "method": "dagger", "beta": round(beta, 4),
@@ -533,7 +555,8 @@ def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path
                              "--out, or remove that folder")
     folders = [folder / "data" / item.name for item in sorted((folder / "data").iterdir())
                if (item / "driving_log.csv").is_file()]
-    model = retrain(base_config, aggregate_recipe(base_recipe, folders), base_model,
+    # The person's takeovers too: the comparison differs only in where the expert's labels are.
+    model = retrain(base_config, aggregate_recipe(base_recipe, folders, config.human), base_model,
                     config.epochs * iteration, config.learning_rate, folder / "train",
                     seed=config.seed, progress=progress)
     return {"method": "plain", "iteration": iteration, "labels_total": recorded["labels"],

@@ -66,6 +66,9 @@ def add_arguments(parser) -> None:
                         help="the expert's steering noise while it records the plain-cloning "
                              "comparison's labels (the labels stay clean); 0 is textbook "
                              "behavioural cloning, on the expert's own states only")
+    parser.add_argument("--human", action="append", default=None, metavar="FOLDER",
+                        help="a recording of a person's takeovers (clonedrive web, takeover "
+                             "mode: HG-DAgger labels), aggregated from iteration 1 (repeatable)")
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap on simulated seconds per episode (quick runs)")
     parser.add_argument("--no-scenery", dest="scenery", action="store_false")
@@ -89,7 +92,7 @@ def run(args) -> int:
             bench_splits=tuple(args.bench_split or ()), workers=args.workers, plain=args.plain,
             plain_each=args.plain_each, plain_noise=args.plain_noise,
             max_seconds=args.max_seconds,
-            scenery=args.scenery, seed=args.seed)
+            scenery=args.scenery, seed=args.seed, human=tuple(args.human or ()))
         for name in (*config.tracks, *config.eval_tracks):
             load_track(name)
         report = run_dagger(config, args.base, args.out, progress=not args.json)

@@ -13,8 +13,13 @@ this runs, and is tested, without a display.
 Modes: ``menu`` (choose a track and direction) -> ``driving`` (a human steers) <->
 ``autonomous`` (a drive server steers, through
 :class:`~clonedrive.udacity.client.SimulatorClient`, exactly as the Udacity simulator's autonomous
-mode; a human holding a steering or throttle key takes over for as long as it is held, and the
+mode; a human takes over for as long as a steering or throttle key is held, a gamepad control is
+moved, or the pointer steers (mouse steering: pressed on the page, inside the window), and the
 server is sent the manual-mode telemetry meanwhile). Recording is independent of the mode.
+Autonomous mode can also be given any :class:`Pilot` (``start_autonomous(pilot)``: the expert or a
+model in this process, as ``clonedrive web`` does), with or without takeover; each takeover is
+counted (:attr:`DrivingSession.takeovers`), and with ``takeover_labels`` a recording keeps only
+the rows a person drove, the labels of HG-DAgger (Kelly et al. 2019).
 
 Steering that gives good labels (UDACITY.md: keyboard steering in the Udacity simulator gives
 mostly 0 and then +-1 spikes):
@@ -48,7 +53,7 @@ import os
 from dataclasses import dataclass, replace
 from datetime import timedelta
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.udacity_spec import JPEG_QUALITY, PORT
@@ -141,6 +146,23 @@ class ManualRecording:
     jpeg_quality: int = JPEG_QUALITY
 
 
+class Pilot(Protocol):
+    """Who drives in autonomous mode: a drive server (the default) or anything that decides from
+    the observation."""
+
+    name: str  #: shown on the HUD
+
+    def controls(self, obs: SimObservation) -> Controls | None:
+        """This step's controls; None: the car rolls on as it is."""
+        ...
+
+    def manual(self) -> None:
+        """A person has the car this step."""
+        ...
+
+    def close(self) -> None: ...
+
+
 @dataclass(frozen=True)
 class MenuItem:
     label: str
@@ -215,8 +237,13 @@ class DrivingSession:
         self._sink = None
         self._lock = None  # the recording folder's lock while recording
         self._session: dict | None = None
+        self._takeovers_before = 0
         self._recording_config: ManualRecording | None = None
-        self._client = None
+        self._client: Pilot | None = None
+        self.takeover = True  #: in autonomous mode, a held control takes over
+        self.takeover_labels = False  #: ... and a recording then keeps only the person's rows
+        self.takeovers = 0  #: takeovers since the session began
+        self._taking_over = False
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> DrivingSession:
@@ -233,6 +260,11 @@ class DrivingSession:
     @property
     def recording(self) -> bool:
         return self._sink is not None
+
+    @property
+    def taking_over(self) -> bool:
+        """A person holds the car in autonomous mode (a takeover)."""
+        return self.mode == AUTONOMOUS and self._taking_over
 
     @property
     def menu_items(self) -> list[MenuItem]:
@@ -296,6 +328,12 @@ class DrivingSession:
         if abs(value) > self.config.gamepad_dead_zone and self.steering_source != GAMEPAD:
             self.steering_source = GAMEPAD
             self._say("gamepad steering")
+
+    def release_all(self) -> None:
+        """Every key, the pointer and the gamepad let go (the input window lost focus)."""
+        self._held.clear()
+        self._pointer_x = None
+        self._axes = dict.fromkeys(GAMEPAD_AXES, 0.0)
 
     def toggle_mouse_steering(self) -> None:
         if self.steering_source == MOUSE:
@@ -376,15 +414,31 @@ class DrivingSession:
         self.observation = None
         self.mode = MENU
 
-    def start_autonomous(self) -> bool:
-        """Connect to the drive server and let it steer. False (and a message) if it cannot."""
-        from clonedrive.udacity.client import ClientConfig, DriveServerError, SimulatorClient
-
+    def start_autonomous(self, pilot: Pilot | None = None, *, takeover: bool = True,
+                         takeover_labels: bool = False) -> bool:
+        """Let ``pilot`` drive (default: connect to the drive server). ``takeover``: a person
+        holding a control drives meanwhile; ``takeover_labels``: a recording keeps only those
+        steps. False (and a message) if it cannot start."""
         if self.sim is None or self.mode != DRIVING:
             return False
         if self.observation is None or "center" not in self.observation.images:
             self._say("autonomous mode needs the center camera")
             return False
+        if pilot is None:
+            pilot = self._connect_server()
+            if pilot is None:
+                return False
+        self._client = pilot
+        self.takeover, self.takeover_labels = takeover, takeover and takeover_labels
+        self._taking_over = False
+        self.mode = AUTONOMOUS
+        hint = "hold a control to take over, " if takeover else ""
+        self._say(f"autonomous: {pilot.name} drives; {hint}P to stop")
+        return True
+
+    def _connect_server(self) -> Pilot | None:
+        from clonedrive.udacity.client import ClientConfig, DriveServerError, SimulatorClient
+
         client = SimulatorClient(ClientConfig(
             host=self.config.server_host, port=self.config.server_port,
             connect_timeout_s=self.config.connect_timeout_s,
@@ -393,16 +447,14 @@ class DrivingSession:
             client.connect()
         except DriveServerError as error:
             self._say(f"autonomous mode off: {error}")
-            return False
-        self._client = client
-        self.mode = AUTONOMOUS
-        self._say(f"autonomous: {client.url} steers; hold a key to take over, P to stop")
-        return True
+            return None
+        return _ServerPilot(client)
 
     def stop_autonomous(self, reason: str = "manual driving") -> None:
         if self._client is not None:
             self._client.close()
             self._client = None
+        self._taking_over = False
         if self.mode == AUTONOMOUS:
             self.mode = DRIVING
             self._key_steering = self.controls.steering
@@ -456,6 +508,7 @@ class DrivingSession:
                              relative_paths=self.config.relative_paths,
                              jpeg_quality=self.config.jpeg_quality)
         self._session = session
+        self._takeovers_before = self.takeovers
         self._recording_config = recording
         self.rows_recorded = 0
         self.folder_rows = existing_rows
@@ -473,6 +526,7 @@ class DrivingSession:
             sink.close()
         finally:
             self._session["rows"] = sink.rows_written
+            self._session["takeovers"] = self.takeovers - self._takeovers_before
             try:
                 write_session_config(self.out_dir, self._recording_config, self.sim.track,
                                      __version__, self._session)
@@ -509,7 +563,7 @@ class DrivingSession:
             return None
         (step,) = self._runner.step()
         controls = step.decision.controls
-        if self._sink is not None:
+        if self._sink is not None and (self._taking_over or not self._labels_only()):
             self._record(step.seen, controls)
         self.controls = controls
         self.observation = self._episode.observation
@@ -526,9 +580,13 @@ class DrivingSession:
             return self._server_controls(human)
         return human
 
+    def _labels_only(self) -> bool:
+        return self.mode == AUTONOMOUS and self.takeover_labels
+
     def _human_active(self) -> bool:
         zone = self.config.gamepad_dead_zone
-        return bool(self._held & DRIVING_KEYS) or any(
+        pointing = self.steering_source == MOUSE and self._pointer_x is not None
+        return pointing or bool(self._held & DRIVING_KEYS) or any(
             abs(value) > zone for value in self._axes.values())
 
     def _human_controls(self, dt_s: float) -> Controls:
@@ -566,13 +624,15 @@ class DrivingSession:
         (the server then gets the manual-mode telemetry, as from the Udacity simulator)."""
         from clonedrive.udacity.client import DriveServerError
 
-        obs = self.observation
+        taking_over = self.takeover and self._human_active()
+        if taking_over and not self._taking_over:
+            self.takeovers += 1
+        self._taking_over = taking_over
         try:
-            if self._human_active():
+            if taking_over:
                 self._client.manual()
                 return human
-            reply = self._client.controls_for(obs.images["center"], obs.steering,
-                                              obs.throttle, obs.speed_mph)
+            reply = self._client.controls(self.observation)
         except DriveServerError as error:
             self.stop_autonomous(f"autonomous mode ended: {error}")
             return human
@@ -601,8 +661,9 @@ class DrivingSession:
                   f"laps {obs.laps}   off-road {obs.off_road_events}"
                   f"{'   OFF ROAD' if obs.off_road else ''}")
         if self.mode == AUTONOMOUS:
-            who = "manual override" if self._human_active() else "the drive server steers"
-            mode = f"AUTONOMOUS ({self._client.url}): {who}"
+            who = "manual override" if self._taking_over else "the pilot drives"
+            takeovers = f"   takeovers {self.takeovers}" if self.takeover else ""
+            mode = f"AUTONOMOUS ({self._client.name}): {who}{takeovers}"
         else:
             mode = f"MANUAL: {self.steering_source} steering"
         if self.recording:
@@ -629,6 +690,24 @@ class DrivingSession:
         if self.message:
             lines += ["", self.message]
         return lines
+
+
+class _ServerPilot:
+    """A drive server as the pilot, through the Udacity simulator's side of the protocol."""
+
+    def __init__(self, client) -> None:
+        self.client = client
+        self.name = client.url
+
+    def controls(self, obs: SimObservation) -> Controls | None:
+        return self.client.controls_for(obs.images["center"], obs.steering, obs.throttle,
+                                        obs.speed_mph)
+
+    def manual(self) -> None:
+        self.client.manual()
+
+    def close(self) -> None:
+        self.client.close()
 
 
 class _SessionDriver:

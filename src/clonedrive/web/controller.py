@@ -54,7 +54,9 @@ class Controller:
         self._laps_seen = 0
         self._lap_start_s = 0.0
         self._last_lap_s: float | None = None
-        self._opened: tuple[str, bool] | None = None  #: the track last driven, and direction
+        #: The track to fall back to when a chosen one fails to load (the last one driven, or
+        #: the first one asked for, whose load a page's command can overtake), and direction.
+        self._opened: tuple[str, bool] | None = (track, bool(reverse))
         self.set_look(self.look)
         session.choose(track, reverse=reverse)
 
@@ -198,6 +200,8 @@ class Controller:
         failure = self.session.message
         self.session.choose(*self._opened[:1], reverse=self._opened[1])
         obs = self.session.step()
+        if obs is None:  # that one fails too: stay in the menu, saying why
+            self._opened = None
         self.session.message = failure
         return obs
 

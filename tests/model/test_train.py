@@ -151,3 +151,22 @@ def test_training_logs_one_line_per_epoch_when_not_on_a_terminal(damaged_recordi
     assert len(epoch_lines) == 2  # one per epoch
     assert all("val_loss" in line for line in epoch_lines)
     assert "━" not in output  # no bar frames
+
+
+def test_a_missing_input_is_named_before_keras_loads(tmp_path: Path) -> None:
+    """A folder or recipe that does not exist fails at once, in a process that never imports
+    Keras."""
+    import subprocess
+    import sys
+
+    probe = ("import sys; from clonedrive.cli import main; code = main(sys.argv[1:]); "
+             "assert 'keras' not in sys.modules; sys.exit(code)")
+    for argv, says in (([str(tmp_path / "nowhere"), "--out", str(tmp_path / "r")],
+                        "no driving log at"),
+                       (["--recipe", str(tmp_path / "r.toml"), "--out", str(tmp_path / "r")],
+                        "recipe file not found")):
+        done = subprocess.run([sys.executable, "-c", probe, "train", *argv],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 1, done.stderr
+        assert done.stderr.startswith(f"clonedrive train: {says}")
+    assert not (tmp_path / "r").exists()

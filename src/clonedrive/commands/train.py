@@ -121,6 +121,10 @@ def _overrides(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
+    missing = _missing_input(args)
+    if missing:  # before Keras loads, which takes seconds
+        print(f"clonedrive train: {missing}", file=sys.stderr)
+        return 1
     from clonedrive.model.train import TrainConfig, load_run_config, train
 
     out: Path = args.out
@@ -166,3 +170,14 @@ def run(args: argparse.Namespace) -> int:
             f"{result.best_val_loss:.5f} ({summary['split']} split) -> {result.model_path}"
         )
     return 0
+
+
+def _missing_input(args: argparse.Namespace) -> str | None:
+    """What the command line names that does not exist (a recipe file, a recording folder)."""
+    if args.recipe and not Path(args.recipe).is_file():
+        return f"recipe file not found: {args.recipe}"
+    for folder in args.dirs or ():
+        if not Path(folder).exists():
+            return (f"no driving log at {folder}: expected a folder holding driving_log.csv "
+                    "and IMG/")
+    return None

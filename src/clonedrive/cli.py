@@ -1,7 +1,8 @@
 """The one console entry, ``clonedrive``: a table of verbs in data-flow order.
 
 Each verb lives in ``clonedrive.commands.<module>`` and provides ``HELP`` (one line),
-``add_arguments(parser)`` and ``run(args) -> int``. Command modules import heavy libraries
+``EXAMPLES`` (command lines shown at the end of its ``--help``), ``add_arguments(parser)`` and
+``run(args) -> int``. Command modules import heavy libraries
 (Keras, Panda3D) inside ``run`` so that ``clonedrive --help`` stays instant.
 """
 

@@ -37,16 +37,8 @@ VERBS: list[tuple[str, str]] = [
 
 
 def _available_verbs() -> list[tuple[str, object]]:
-    verbs = []
-    for verb, module_name in VERBS:
-        try:
-            module = importlib.import_module(f"clonedrive.commands.{module_name}")
-        except ModuleNotFoundError as error:
-            if error.name == f"clonedrive.commands.{module_name}":
-                continue  # verb not built yet
-            raise
-        verbs.append((verb, module))
-    return verbs
+    return [(verb, importlib.import_module(f"clonedrive.commands.{module_name}"))
+            for verb, module_name in VERBS]
 
 
 #: The top-level help's closing text: the order a user runs the verbs in, and the docs.

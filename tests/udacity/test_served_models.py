@@ -5,22 +5,19 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import sys
 from pathlib import Path
 
 import keras
 import numpy as np
 import pytest
 from keras import layers
+from support.student_models import student_model, write_keras2_h5
 from websockets.asyncio.client import connect
 
 from clonedrive.cli import main
 from clonedrive.drivers.network import NetworkPolicy, load_policy
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
-
-sys.path.insert(0, str(Path(__file__).parents[1] / "drivers"))
-from student_models import student_model, write_keras2_h5  # noqa: E402
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "fixtures" / "udacity" / "mountain_windows_paths"
 

@@ -24,7 +24,6 @@ EXAMPLES = (
     "clonedrive check ~/udacity/my_recording --json",
 )
 
-HISTOGRAM_BINS = 11
 BAR_WIDTH = 40
 ROWS_SHOWN = 5
 
@@ -85,13 +84,13 @@ def summarize(log) -> dict:
     """The figures ``check --json`` prints, from a read :class:`DrivingLog`."""
     import numpy as np
 
-    from clonedrive.data.driving_log import image_time
+    from clonedrive.data.driving_log import STEERING_HISTOGRAM_BINS, image_time
 
     groups = log.skipped_by_reason()
     shared = log.shared_images()
     steering = np.array([row.steering for row in log.rows], dtype=np.float64)
     speed = np.array([row.speed_mph for row in log.rows], dtype=np.float64)
-    counts, edges = np.histogram(steering, bins=HISTOGRAM_BINS, range=(-1.0, 1.0))
+    counts, edges = np.histogram(steering, bins=STEERING_HISTOGRAM_BINS, range=(-1.0, 1.0))
     times = [image_time(row.center) for row in log.rows]
     times = [moment for moment in times if moment is not None]
     duration_s = (max(times) - min(times)).total_seconds() if times else None

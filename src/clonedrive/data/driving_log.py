@@ -47,6 +47,8 @@ VERIFY_MODES = ("none", "exists", "decode")
 #: Largest driving_log.csv read [bytes]: about 300,000 rows of absolute paths, 5.5 hours at
 #: 15 Hz (the Udacity sample data set is 1.5 MB). Reading one at the cap peaks near 0.6 GB.
 MAX_LOG_BYTES = 64 << 20
+#: Bins of the steering histogram ``record`` and ``check`` print (over [-1, 1]).
+STEERING_HISTOGRAM_BINS = 11
 #: Longest image file name [bytes] that file systems allow.
 MAX_NAME_BYTES = 255
 # What a file that is not a CSV starts with, and what it is then.

@@ -65,6 +65,7 @@ from clonedrive.data.driving_log import (
     CAMERAS,
     CSV_NAME,
     IMAGE_FOLDER,
+    STEERING_HISTOGRAM_BINS,
     DrivingLogWriter,
     image_name,
     image_time,
@@ -78,7 +79,6 @@ from clonedrive.paths import check_output_folder, describe_os_error, with_filena
 from clonedrive.udacity_spec import JPEG_QUALITY
 
 CONFIG_NAME = "config.json"
-HISTOGRAM_BINS = 11
 #: Steps queued for the writer thread at most (bounds memory; each holds three images).
 MAX_PENDING_ROWS = 16
 #: Suffix of an image being written (``IMG/.center_..._123.tmp.jpg``), renamed when complete.
@@ -270,7 +270,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
 
     session["rows"] = rows
     write_session_config(out, config, track, __version__, session)
-    counts, edges = np.histogram(np.asarray(steering[:rows]), bins=HISTOGRAM_BINS,
+    counts, edges = np.histogram(np.asarray(steering[:rows]), bins=STEERING_HISTOGRAM_BINS,
                                  range=(-1.0, 1.0))
     messages = {
         "laps": f"recorded {config.laps} lap(s)",

@@ -153,8 +153,10 @@ def test_steer_values_must_be_strings() -> None:
     assert parse_steer([{"steering_angle": "1e-05", "throttle": "0"}]).steering == 1e-05
     with pytest.raises(DriveServerError, match="as a string"):
         parse_steer([{"steering_angle": 0.1, "throttle": "0.2"}])
-    with pytest.raises(DriveServerError, match="not finite"):
+    with pytest.raises(DriveServerError, match="not a number"):
         parse_steer([{"steering_angle": "nan", "throttle": "0.2"}])
+    with pytest.raises(DriveServerError, match="not finite"):  # a number, too large for a float
+        parse_steer([{"steering_angle": "1e400", "throttle": "0.2"}])
     with pytest.raises(DriveServerError, match="data object"):
         parse_steer([])
 

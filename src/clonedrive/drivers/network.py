@@ -174,6 +174,9 @@ class NetworkPolicy:
         self.model = model
         self.speed_head = has_speed_head(model)
         self.input_dtype = model_input_dtype(model)
+        #: The frame rows [top, bottom) the model looks at (its first layer's Cropping2D), or
+        #: None when it looks at all of them or cannot say (a traced or ONNX model).
+        self.visible_rows = visible_rows(model)
         #: Runs the model on a batch: traced by PyTorch where that gives the same outputs
         #: (clonedrive.drivers.traced), else the model's predict_on_batch.
         self.forward = forward_for(model)
@@ -318,6 +321,20 @@ def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
     half = len(values) // 2
     return ((values[:half] + np.float32(sign) * values[half:]) * np.float32(0.5)).astype(
         np.float32)
+
+
+def visible_rows(model) -> tuple[int, int] | None:
+    """``(first, end)``: the rows of a 160-row frame that ``model`` looks at, when its first
+    layer after the input is a ``Cropping2D`` (as in all of ours); None when it sees them all,
+    crops otherwise, or has no Keras layers to read."""
+    layers = [layer for layer in getattr(model, "layers", None) or ()
+              if type(layer).__name__ != "InputLayer"]
+    if not layers or type(layers[0]).__name__ != "Cropping2D" or getattr(
+            layers[0], "data_format", "channels_last") != "channels_last":
+        return None
+    (top, bottom), _ = layers[0].cropping
+    first, end = int(top), IMAGE_SHAPE[0] - int(bottom)
+    return (first, end) if 0 <= first < end <= IMAGE_SHAPE[0] else None
 
 
 def model_input_dtype(model) -> np.dtype:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from clonedrive.drivers.crop import visible_rows
 from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
@@ -321,20 +322,6 @@ def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
     half = len(values) // 2
     return ((values[:half] + np.float32(sign) * values[half:]) * np.float32(0.5)).astype(
         np.float32)
-
-
-def visible_rows(model) -> tuple[int, int] | None:
-    """``(first, end)``: the rows of a 160-row frame that ``model`` looks at, when its first
-    layer after the input is a ``Cropping2D`` (as in all of ours); None when it sees them all,
-    crops otherwise, or has no Keras layers to read."""
-    layers = [layer for layer in getattr(model, "layers", None) or ()
-              if type(layer).__name__ != "InputLayer"]
-    if not layers or type(layers[0]).__name__ != "Cropping2D" or getattr(
-            layers[0], "data_format", "channels_last") != "channels_last":
-        return None
-    (top, bottom), _ = layers[0].cropping
-    first, end = int(top), IMAGE_SHAPE[0] - int(bottom)
-    return (first, end) if 0 <= first < end <= IMAGE_SHAPE[0] else None
 
 
 def model_input_dtype(model) -> np.dtype:

@@ -55,7 +55,7 @@ from clonedrive.data.recipe import (
     load_recipe,
     recipe_to_toml,
 )
-from clonedrive.drivers.network import visible_rows
+from clonedrive.drivers.crop import visible_rows
 from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 
 logger = logging.getLogger(__name__)

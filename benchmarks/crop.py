@@ -14,7 +14,7 @@
   evaluated on lake and mountain (1 lap, 15 mph) cropped and full-frame: laps, interventions,
   mean |CTE|.
 
-Run: python benchmarks/crop.py [MODEL.keras]
+Run: python benchmarks/crop.py [MODEL.keras|-] [pixels] [speed] [driving]   (default: all parts)
 """
 
 from __future__ import annotations
@@ -72,8 +72,11 @@ def crop_pixels(track_name: str, rows: tuple[int, int]) -> dict:
             "differing_pixels_pct": round(100.0 * differing / pixels, 2)}
 
 
-def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 20.0) -> tuple[float, int]:
-    """evaluate's steps/s: 8 cars in lock-step on the lake, ``seconds`` each."""
+def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 20.0
+                         ) -> tuple[float, int, float]:
+    """evaluate's steps/s: 8 cars in lock-step on the lake, ``seconds`` each; also steps per
+    CPU second of this process (both its threads), which other work on the machine slows
+    less."""
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     speeds = tuple(20.0 + 0.5 * i for i in range(8))
@@ -81,16 +84,16 @@ def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 20.0) -> tup
                         max_seconds=seconds, expert_reference=False, full_frame=full_frame,
                         renderer="software")
     with tempfile.TemporaryDirectory() as out:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         report = evaluate(policy, config, out, progress=False)
-        wall = time.perf_counter() - start
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
     steps = sum(round(run["elapsed_s"] * 15) for run in report["runs"])
-    return steps / wall, steps
+    return steps / wall, steps, steps / cpu
 
 
-def crop_speedup(crop_top: int) -> tuple[float, list, float]:
-    """(speedup, pairs, loop_ratio with the crop) for the ``fast`` network cropping at
-    ``crop_top``."""
+def crop_speedup(crop_top: int) -> tuple[float, list, float, float]:
+    """(speedup, pairs, loop_ratio with the crop, speedup in steps per CPU second) for the
+    ``fast`` network cropping at ``crop_top``."""
     import numpy as np
     from evaluate import render_only_steps_per_s
 
@@ -100,14 +103,15 @@ def crop_speedup(crop_top: int) -> tuple[float, list, float]:
 
     policy = NetworkPolicy(build_model("fast", crop_top_px=crop_top), set_speed_mph=20.0)
     policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))  # warm up
-    pairs, loops = [], []
+    pairs, loops, cpu = [], [], []
     for _ in range(PAIRS):
-        cropped, steps = evaluate_steps_per_s(policy, full_frame=False)
-        full, _ = evaluate_steps_per_s(policy, full_frame=True)
+        cropped, steps, cropped_cpu = evaluate_steps_per_s(policy, full_frame=False)
+        full, _, full_cpu = evaluate_steps_per_s(policy, full_frame=True)
         pairs.append((cropped, full))
+        cpu.append(cropped_cpu / full_cpu)
         loops.append(cropped / render_only_steps_per_s(steps))
     speedup = statistics.median(c / f for c, f in pairs)
-    return speedup, pairs, statistics.median(loops)
+    return speedup, pairs, statistics.median(loops), statistics.median(cpu)
 
 
 def crop_driving(model_path: str) -> dict:
@@ -132,23 +136,27 @@ def crop_driving(model_path: str) -> dict:
 
 def main() -> None:
     figures: dict = {}
-    for name, rows in CROPS.items():
+    parts = sys.argv[2:] or ["pixels", "speed", "driving"]
+    for name, rows in CROPS.items() if "pixels" in parts else ():
         for track in ("lake", "mountain"):
             found = crop_pixels(track, rows)
             figures[f"crop_pixels_{track}_{name}"] = found
             print(f"crop rows {rows[0]}-{rows[1]}, {track}, {found['frames']} frames: max "
                   f"difference {found['max_difference']}, mean {found['mean_abs_difference']}, "
                   f"{found['differing_pixels_pct']} % of pixels differ")
-    for name in CROPS:
-        speedup, pairs, loop = crop_speedup(int(name))
+    for name in CROPS if "speed" in parts else ():
+        speedup, pairs, loop, cpu = crop_speedup(int(name))
         listed = ", ".join(f"{c:.0f} / {f:.0f}" for c, f in pairs)
         print(f"evaluate, 8 cars, fast network, crop top {name}: cropped / full-frame steps/s "
-              f"{listed} -> crop_speedup {speedup:.2f}; loop_ratio with the crop {loop:.2f}")
+              f"{listed} -> crop_speedup {speedup:.2f} (per CPU second {cpu:.2f}); "
+              f"loop_ratio with the crop {loop:.2f}")
         figures[f"crop_speedup_{name}"] = round(speedup, 3)
+        figures[f"crop_speedup_cpu_{name}"] = round(cpu, 3)
         figures[f"loop_ratio_crop_{name}"] = round(loop, 3)
-    figures["crop_speedup"] = figures["crop_speedup_80"]
-    figures["loop_ratio"] = figures["loop_ratio_crop_80"]
-    if len(sys.argv) > 1:
+    if "speed" in parts:
+        figures["crop_speedup"] = figures["crop_speedup_80"]
+        figures["loop_ratio"] = figures["loop_ratio_crop_80"]
+    if len(sys.argv) > 1 and sys.argv[1] != "-" and "driving" in parts:
         driving = crop_driving(sys.argv[1])
         for kind, runs in driving.items():
             for run in runs:

@@ -26,7 +26,7 @@ def add_render_arguments(parser: argparse.ArgumentParser, *, crop: bool = True) 
             "--full-frame", action="store_true",
             help="render all 160 rows of each frame; by default only the rows the network's "
                  "crop keeps are rendered and the rest are filled with a constant (the network "
-                 "never sees them)")
+                 "never sees them); runs that write a video always get whole frames")
 
 
 def renderer_error(args: argparse.Namespace, verb: str) -> str | None:

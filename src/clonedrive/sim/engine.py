@@ -58,7 +58,7 @@ def check_renderer(name: str) -> str:
 
 
 class RenderEngine:
-    """One Panda3D graphics engine and pipe; headless (software, offscreen) by default.
+    """One Panda3D graphics engine and pipe; headless (offscreen) by default.
 
     ``renderer``: ``"software"``, ``"egl"`` or ``"auto"`` (see the module). ``window=True``
     selects the OpenGL pipe (``pandagl``) for an interactive window; offscreen buffers then come
@@ -68,7 +68,7 @@ class RenderEngine:
     """
 
     def __init__(self, *, window: bool = False, options: dict[str, str] | None = None,
-                 renderer: str = "software"):
+                 renderer: str = DEFAULT_RENDERER):
         from panda3d.core import GraphicsEngine, GraphicsPipeSelection, load_prc_file_data
 
         self.renderer = "window" if window else resolve_renderer(renderer)

@@ -40,7 +40,7 @@ import numpy as np
 
 from clonedrive.sim import textures
 from clonedrive.sim.conditions import Conditions
-from clonedrive.sim.engine import RenderEngine
+from clonedrive.sim.engine import DEFAULT_RENDERER, RenderEngine
 from clonedrive.sim.meshes import BakedGeom, Mesh, grid_triangles
 from clonedrive.sim.randomization import (
     Appearance,
@@ -118,7 +118,7 @@ class Scene:
         seed: int = 0,
         window: bool = False,
         conditions: Conditions | None = None,
-        renderer: str = "software",
+        renderer: str = DEFAULT_RENDERER,
     ):
         from panda3d.core import NodePath
 

@@ -6,13 +6,16 @@
   difference, and the share of pixels that differ at all. For the write-up's crop (rows 80-135)
   and ``--crop-top 60`` (rows 60-135).
 - ``crop_speedup``: ``clonedrive evaluate``'s steps/s with the crop / with ``--full-frame``, 8
-  cars in lock-step on the lake, the demo's network (``fast``; its weights do not change the
-  cost), alternating pairs in one run, the median pair's ratio. For crop tops 80 and 60.
+  cars in lock-step on the lake for 60 s each, the demo's network (``fast``; its weights do not
+  change the cost), alternating pairs in one run, the median pair's ratio. For crop tops 80 and
+  60. Beside it the same per CPU second of this process (``crop_speedup_cpu_*``: other work on a
+  shared machine slows it less) and for the steady loop alone, simulators built, no map plots
+  (``crop_speedup_steady_*``).
 - ``loop_ratio_crop``: the cropped closed loop's steps/s / render-only steps/s of full frames of
   the center camera on the same track (``benchmarks/evaluate.py``'s ``loop_ratio`` reference).
 - ``crop_driving``: a model (the argument, e.g. the demo's model.keras; default: none, skipped)
-  evaluated on lake and mountain (1 lap, 15 mph) cropped and full-frame: laps, interventions,
-  mean |CTE|.
+  evaluated on lake and mountain (1 lap, 15 mph) cropped and full-frame with the software
+  renderer, and cropped with EGL: laps, interventions, mean and max |CTE|.
 
 Run: python benchmarks/crop.py [MODEL.keras|-] [pixels] [speed] [driving]   (default: all parts)
 """
@@ -72,7 +75,7 @@ def crop_pixels(track_name: str, rows: tuple[int, int]) -> dict:
             "differing_pixels_pct": round(100.0 * differing / pixels, 2)}
 
 
-def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 20.0
+def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 60.0
                          ) -> tuple[float, int, float]:
     """evaluate's steps/s: 8 cars in lock-step on the lake, ``seconds`` each; also steps per
     CPU second of this process (both its threads), which other work on the machine slows
@@ -91,9 +94,44 @@ def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 20.0
     return steps / wall, steps, steps / cpu
 
 
-def crop_speedup(crop_top: int) -> tuple[float, list, float, float]:
-    """(speedup, pairs, loop_ratio with the crop, speedup in steps per CPU second) for the
-    ``fast`` network cropping at ``crop_top``."""
+def steady_steps_per_s(policy, rows, seconds: float = 20.0) -> float:
+    """Steps/s of 8 cars in lock-step once their simulators are built (no scene builds, no map
+    plots), the network on a second thread as evaluate runs it, frames of ``rows``."""
+    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.rules import EpisodeRules
+    from clonedrive.episode.runner import Episode, Runner
+    from clonedrive.keras_backend import compute_threads
+    from clonedrive.sim.camera_pool import CameraPool
+    from clonedrive.sim.simulator import SimConfig, Simulator
+
+    speeds = [20.0 + 0.5 * i for i in range(8)]
+    config = SimConfig(cameras=("center",), renderer="software", render_rows=rows)
+    with CameraPool() as pool:
+        sims = [Simulator("lake", config, pool=pool) for _ in speeds]
+        try:
+            episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed,
+                                                  max_seconds=seconds), track="lake", seed=0)
+                        for sim, speed in zip(sims, speeds, strict=True)]
+            runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=True)
+            runner.reset()
+            steps = 0
+
+            def count(_step) -> None:
+                nonlocal steps
+                steps += 1
+
+            with compute_threads(1):
+                start = time.perf_counter()
+                runner.run(count)
+                return steps / (time.perf_counter() - start)
+        finally:
+            for sim in sims:
+                sim.close()
+
+
+def crop_speedup(crop_top: int) -> tuple[float, list, float, float, float]:
+    """(speedup, pairs, loop_ratio with the crop, speedup in steps per CPU second, speedup of
+    the steady loop) for the ``fast`` network cropping at ``crop_top``."""
     import numpy as np
     from evaluate import render_only_steps_per_s
 
@@ -103,31 +141,39 @@ def crop_speedup(crop_top: int) -> tuple[float, list, float, float]:
 
     policy = NetworkPolicy(build_model("fast", crop_top_px=crop_top), set_speed_mph=20.0)
     policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))  # warm up
-    pairs, loops, cpu = [], [], []
+    pairs, loops, cpu, steady = [], [], [], []
     for _ in range(PAIRS):
+        rows = (crop_top, 135)
+        steady.append(steady_steps_per_s(policy, rows) / steady_steps_per_s(policy, None))
         cropped, steps, cropped_cpu = evaluate_steps_per_s(policy, full_frame=False)
         full, _, full_cpu = evaluate_steps_per_s(policy, full_frame=True)
         pairs.append((cropped, full))
         cpu.append(cropped_cpu / full_cpu)
         loops.append(cropped / render_only_steps_per_s(steps))
     speedup = statistics.median(c / f for c, f in pairs)
-    return speedup, pairs, statistics.median(loops), statistics.median(cpu)
+    return (speedup, pairs, statistics.median(loops), statistics.median(cpu),
+            statistics.median(steady))
 
 
 def crop_driving(model_path: str) -> dict:
-    """The model's runs on lake and mountain (1 lap, 15 mph), cropped and full-frame."""
+    """The model's runs on lake and mountain (1 lap, 15 mph): cropped and full-frame with the
+    software renderer, and cropped with EGL (where it opens)."""
     from clonedrive.drivers.network import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
+    from clonedrive.sim.engine import probe_egl
 
     policy = load_policy(model_path)
     found = {}
-    for full_frame in (False, True):
+    ways = [("software", False), ("software", True)]
+    if probe_egl() is not None:
+        ways.append(("egl", False))
+    for renderer, full_frame in ways:
         config = EvalConfig(tracks=("lake", "mountain"), speeds_mph=(15.0,), laps=1,
                             expert_reference=False, full_frame=full_frame,
-                            renderer="software", workers=1)
+                            renderer=renderer, workers=1)
         with tempfile.TemporaryDirectory() as out:
             report = evaluate(policy, config, out, progress=False)
-        found["full_frame" if full_frame else "cropped"] = [
+        found[f"{renderer}_{'full_frame' if full_frame else 'cropped'}"] = [
             {key: run[key] for key in ("track", "laps_completed", "interventions",
                                        "mean_abs_cte_m", "max_abs_cte_m")}
             for run in report["runs"]]
@@ -145,11 +191,12 @@ def main() -> None:
                   f"difference {found['max_difference']}, mean {found['mean_abs_difference']}, "
                   f"{found['differing_pixels_pct']} % of pixels differ")
     for name in CROPS if "speed" in parts else ():
-        speedup, pairs, loop, cpu = crop_speedup(int(name))
+        speedup, pairs, loop, cpu, steady = crop_speedup(int(name))
         listed = ", ".join(f"{c:.0f} / {f:.0f}" for c, f in pairs)
         print(f"evaluate, 8 cars, fast network, crop top {name}: cropped / full-frame steps/s "
-              f"{listed} -> crop_speedup {speedup:.2f} (per CPU second {cpu:.2f}); "
-              f"loop_ratio with the crop {loop:.2f}")
+              f"{listed} -> crop_speedup {speedup:.2f} (per CPU second {cpu:.2f}; the steady "
+              f"loop alone {steady:.2f}); loop_ratio with the crop {loop:.2f}")
+        figures[f"crop_speedup_steady_{name}"] = round(steady, 3)
         figures[f"crop_speedup_{name}"] = round(speedup, 3)
         figures[f"crop_speedup_cpu_{name}"] = round(cpu, 3)
         figures[f"loop_ratio_crop_{name}"] = round(loop, 3)

@@ -243,7 +243,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     rules = EpisodeRules(laps=config.laps, set_speed_mph=config.speed_mph,
                          max_seconds=config.max_seconds)
     folders = [out / safe_stem(name) for name in config.tracks]
-    sims, sinks, rows = [], [], None if config.full_frame else policy.visible_rows
+    sims, sinks, rows = [], [], None if config.full_frame else getattr(policy, "visible_rows", None)
     try:
         for track, folder in zip(tracks, folders, strict=True):
             sims.append(Simulator(track, SimConfig(scenery=config.scenery, render_rows=rows,

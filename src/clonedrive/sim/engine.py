@@ -84,6 +84,8 @@ class RenderEngine:
         selection = GraphicsPipeSelection.get_global_ptr()
         if window:
             pipe = selection.make_module_pipe(settings["load-display"])
+        elif self.renderer == "egl":
+            pipe = _egl_pipe()
         else:
             pipe = selection.make_pipe(*_PIPES[self.renderer])
         if pipe is None or not pipe.is_valid():
@@ -164,6 +166,16 @@ class RenderEngine:
         self._outputs.clear()
         self.closed = True
         self._unload()
+
+
+@functools.cache
+def _egl_pipe():
+    """The process's one EGL pipe, shared by every EGL engine. Destroying an EGL pipe
+    terminates the process's EGL display, which breaks every other EGL engine still open, so
+    the pipe is made once and kept until the process ends."""
+    from panda3d.core import GraphicsPipeSelection
+
+    return GraphicsPipeSelection.get_global_ptr().make_pipe(*_PIPES["egl"])
 
 
 @functools.cache

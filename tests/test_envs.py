@@ -34,3 +34,14 @@ def test_generated_env_takes_a_track_seed_and_rewards_progress():
         total += reward
     env.close()
     assert total > 5.0
+
+
+def test_image_env_renders_only_the_rows_asked_for():
+    env = gym.make("clonedrive/Lake-v0", renderer="software", render_rows=(80, 135))
+    obs, _ = env.reset(seed=0)
+    obs, *_ = env.step(np.array([0.0, 0.5]))
+    env.close()
+    assert obs.shape == (160, 320, 3)
+    assert not obs[:80].any() and not obs[135:].any() and obs[80:135].any()
+    with pytest.raises(ValueError, match="render_rows"):
+        gym.make("clonedrive/Lake-v0", render_rows=(80, 135), render_mode="rgb_array")

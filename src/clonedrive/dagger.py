@@ -60,6 +60,7 @@ import numpy as np
 
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.config import save_config, write_json_atomic
+from clonedrive.sim.engine import DEFAULT_RENDERER
 
 DAGGER_JSON = "dagger.json"
 DAGGER_PNG = "dagger.png"
@@ -98,6 +99,8 @@ class DaggerConfig:
     scenery: bool = True
     #: recordings of a person's takeovers (``clonedrive web``), aggregated from iteration 1
     human: tuple[str, ...] = ()
+    renderer: str = DEFAULT_RENDERER  #: who draws frames (sim/engine.py), collecting and after
+    full_frame: bool = False  #: render whole frames, not only the rows the network's crop keeps
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "human", tuple(str(folder) for folder in self.human))
@@ -240,10 +243,11 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     rules = EpisodeRules(laps=config.laps, set_speed_mph=config.speed_mph,
                          max_seconds=config.max_seconds)
     folders = [out / safe_stem(name) for name in config.tracks]
-    sims, sinks = [], []
+    sims, sinks, rows = [], [], None if config.full_frame else getattr(policy, "visible_rows", None)
     try:
         for track, folder in zip(tracks, folders, strict=True):
-            sims.append(Simulator(track, SimConfig(scenery=config.scenery)))
+            sims.append(Simulator(track, SimConfig(scenery=config.scenery, render_rows=rows,
+                                                   renderer=config.renderer)))
             _, start = prepare_log_folder(folder, START_TIME)
             sinks.append(RowSink(folder, start, relative_paths=True))
         episodes = [Episode(sim, rules, track=name, seed=seed)
@@ -271,8 +275,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
             per_track.append({
                 "track": name, "folder": folders[car].name, "labels": sinks[car].rows_written,
                 "distance_km": round(km, 3), "takeovers": driver.takeovers[car],
-                "off_road_events": summary["interventions"], "steps_by": driver.steps_by[car],
-            })
+                "off_road_events": summary["interventions"], "steps_by": driver.steps_by[car]})
     finally:
         for sink in sinks:
             sink.close()
@@ -287,11 +290,10 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     result = {
         "beta": round(beta, 4), "labels": labels, "distance_km": round(km, 3),
         "takeovers": takeovers, "takeovers_per_km": round(takeovers / km, 3) if km else None,
-        "off_road_events": off_road,
-        "off_road_per_km": round(off_road / km, 3) if km else None,
+        "off_road_events": off_road, "off_road_per_km": round(off_road / km, 3) if km else None,
         "expert_share": round((steps["expert"] + steps["takeover"]) / max(1, sum(steps.values())),
                               4),
-        "tracks": per_track,
+        "tracks": per_track, "render_rows": None if rows is None else list(rows),
     }
     write_json_atomic(out / "collect.json", result)
     return result
@@ -381,7 +383,8 @@ def evaluate_model(model_path: Path, config: DaggerConfig, out: Path, references
         eval_config = EvalConfig(tracks=config.eval_tracks, speeds_mph=(config.speed_mph,),
                                  laps=config.eval_laps, unseen=config.eval_unseen,
                                  unseen_speed_mph=config.speed_mph, unseen_laps=config.eval_laps,
-                                 scenery=config.scenery, max_seconds=config.max_seconds)
+                                 scenery=config.scenery, max_seconds=config.max_seconds,
+                                 renderer=config.renderer, full_frame=config.full_frame)
         report = evaluate(load_policy(model_path), eval_config, out, progress=progress,
                           model_path=str(model_path))
     return split_figures(report["runs"], references)
@@ -398,7 +401,8 @@ def _bench_model(model_path: Path, config: DaggerConfig, out: Path, *, progress:
     if report is None or not report.get("complete"):
         report = bench(BenchConfig(models=(f"model={model_path}",), suite=config.bench_suite,
                                    splits=config.bench_splits, workers=config.workers,
-                                   scenery=config.scenery, max_seconds=config.max_seconds),
+                                   scenery=config.scenery, max_seconds=config.max_seconds,
+                                 renderer=config.renderer, full_frame=config.full_frame),
                        out, progress=progress)
     model = next(iter(report["models"].values()))
     return {**model["splits"], "overall": model["overall"]}
@@ -411,16 +415,12 @@ def split_figures(runs: Sequence[dict], references: dict) -> dict:
     def figures(rows):
         km = sum(r["distance_m"] for r in rows) / 1000.0
         clean = [r for r in rows if r["laps_completed"] >= r["laps_target"]]
-        ratios = []
-        for r in clean:
-            reference = references.get(_reference_key(r["track"], r["speed_mph"]))
-            if r.get("lap_time_s") and reference and reference.get("lap_time_s"):
-                ratios.append(r["lap_time_s"] / reference["lap_time_s"])
-        smooth = []
-        for r in rows:
-            reference = references.get(_reference_key(r["track"], r["speed_mph"]))
-            if reference and reference.get("smoothness"):
-                smooth.append(r["smoothness"] / reference["smoothness"])
+        ref = {id(r): references.get(_reference_key(r["track"], r["speed_mph"])) or {}
+               for r in rows}
+        ratios = [r["lap_time_s"] / ref[id(r)]["lap_time_s"] for r in clean
+                  if r.get("lap_time_s") and ref[id(r)].get("lap_time_s")]
+        smooth = [r["smoothness"] / ref[id(r)]["smoothness"] for r in rows
+                  if ref[id(r)].get("smoothness")]
         return {
             "runs": len(rows),
             "success_pct": round(100.0 * len(clean) / len(rows), 1) if rows else None,

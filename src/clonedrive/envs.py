@@ -10,6 +10,11 @@ Observation: the center camera image (uint8 RGB 160x320x3) by default, or with
 curvature 1/m, all tyres on road). Action: ``[steering, throttle]`` in [-1, 1].
 Reward: metres of progress along the track this step; -10 and termination when a tyre leaves
 the road. Episodes are truncated after ``max_episode_steps`` (default 1500 = 100 s at 15 Hz).
+
+Rendering options: ``renderer`` (``"auto"``, ``"software"`` or ``"egl"``: sim/engine.py) and
+``render_rows=(top, bottom)``: only those rows of the image are rendered, the rest are a
+constant (what a policy that crops its input needs; not with ``render_mode``, which shows whole
+frames). ``sim_config`` replaces all of them.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.sim.simulator import Controls, SimConfig, Simulator
 from clonedrive.world.catalog import load_track
 
@@ -30,20 +36,25 @@ class DrivingEnv(gym.Env):
     def __init__(self, track: str = "lake", *, track_seed: int | None = None,
                  generator: int = 1, difficulty: str = "medium",
                  observation: str = "image", render_mode: str | None = None,
-                 sim_config: SimConfig | None = None):
+                 sim_config: SimConfig | None = None, renderer: str = DEFAULT_RENDERER,
+                 render_rows: tuple[int, int] | None = None):
         if observation not in ("image", "state"):
             raise ValueError(f"observation must be 'image' or 'state', got {observation!r}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         if generator not in (1, 2):
             raise ValueError(f"generator must be 1 or 2, got {generator!r}")
+        if render_rows is not None and render_mode is not None:
+            raise ValueError("render_rows renders part of each frame; render_mode needs whole "
+                             "frames: give one of them")
         name = track
         if track_seed is not None:
             name = f"gen:{track_seed}" if generator == 1 else f"gen2:{difficulty}:{track_seed}"
         self.observation_kind = observation
         self.render_mode = render_mode
         cameras = ("center",) if observation == "image" or render_mode else ()
-        config = sim_config or SimConfig(cameras=cameras)
+        config = sim_config or SimConfig(cameras=cameras, renderer=renderer,
+                                         render_rows=render_rows)
         self.sim = Simulator(load_track(name), config)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         if observation == "image":

@@ -80,6 +80,8 @@ def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_pa
     one, two = reports
     assert json.dumps(one["models"], sort_keys=True) == json.dumps(two["models"], sort_keys=True)
     assert one["complete"] and set(one["methods"]) == {"tiny"}
+    assert one["rendering"]["renderer"] == "auto" and one["rendering"]["gl_renderer"]
+    assert one["rendering"]["full_frame"] is False
     runs = one["models"][f"tiny={tiny_models[0]}"]["runs"]
     assert [r["family"] for r in runs] == ["clear", "late"]
     assert runs[1]["conditions"]["latency_steps"] == 2

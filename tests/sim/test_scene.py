@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from clonedrive.sim.cameras import CameraRig
-from clonedrive.sim.scene import RenderEngine, Scene
+from clonedrive.sim.engine import RenderEngine
+from clonedrive.sim.scene import Scene
 from clonedrive.sim.scenery import build_scenery, find_bridge
 from clonedrive.sim.scenery.site import WATER_BELOW_BRIDGE_M, WATER_BELOW_ROAD_M, water_level
 from clonedrive.world.catalog import load_track

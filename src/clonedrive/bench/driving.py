@@ -18,6 +18,7 @@ from clonedrive.bench.suite import EpisodeSpec
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Decision, Episode, PerCar, Runner, Step
 from clonedrive.sim.camera_pool import CameraPool
+from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.sim.simulator import Controls, SimConfig, SimObservation, Simulator
 
 #: What a delayed car applies before its first decision arrives: coast straight.
@@ -90,7 +91,9 @@ def drive_batch(task: dict) -> list[dict]:
                         trust=bool(task.get("trust_model", False)),
                         runtime=str(task.get("runtime", "auto")),
                         scenery=bool(task.get("scenery", True)),
-                        portable=task.get("portable"))
+                        portable=task.get("portable"),
+                        renderer=str(task.get("renderer", DEFAULT_RENDERER)),
+                        full_frame=bool(task.get("full_frame", False)))
 
 
 def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> list[Episode]:
@@ -100,21 +103,25 @@ def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> l
 
 def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                  policy_options: dict, scenery: bool, trust: bool = False,
-                 runtime: str = "auto", portable=None) -> list[dict]:
+                 runtime: str = "auto", portable=None, renderer: str = DEFAULT_RENDERER,
+                 full_frame: bool = False) -> list[dict]:
     """``portable``: the model's checked traces (NetworkPolicy.portable), run by PyTorch alone
-    instead of loading the model file with Keras; the same steering to the last bit."""
+    instead of loading the model file with Keras; the same steering to the last bit. Frames
+    are drawn by ``renderer``; only the rows the model's crop keeps unless ``full_frame``."""
     from clonedrive.drivers.network import load_policy
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.keras_backend import compute_threads
 
     policy = load_policy(model_path, trust=trust, runtime=runtime, portable=portable,
                          **policy_options)
+    rows = None if full_frame else policy.visible_rows
     sims = []
     pool = CameraPool()  # the runs on one track in one look share a scene
     try:
         for spec in specs:
-            sims.append(Simulator(spec.track, SimConfig(cameras=("center",), scenery=scenery,
-                                                        conditions=spec.conditions), pool=pool))
+            config = SimConfig(cameras=("center",), scenery=scenery, conditions=spec.conditions,
+                               renderer=renderer, render_rows=rows)
+            sims.append(Simulator(spec.track, config, pool=pool))
         episodes = _episodes(sims, specs, rules)
         driver = NetworkDriver(policy, [spec.speed_mph for spec in specs])
         latency = [spec.conditions.latency_steps for spec in specs]

@@ -25,6 +25,7 @@ from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
 from clonedrive.config import config_to_dict, write_json_atomic
+from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 
 #: bench.json's format version.
@@ -52,6 +53,9 @@ class BenchConfig:
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
     trust_model: bool = False  #: allow Lambda layers (--trust-model; drivers.model_file)
     runtime: str = "auto"  #: "auto", "keras" or "onnx" (--runtime)
+    renderer: str = DEFAULT_RENDERER  #: "auto", "software" or "egl" (sim/engine.py)
+    #: render whole frames, not only the rows each model's crop keeps (drivers/crop.py)
+    full_frame: bool = False
 
     def __post_init__(self) -> None:
         if not self.models:
@@ -62,6 +66,7 @@ class BenchConfig:
             raise ValueError(f"workers must be at least 1, got {self.workers}")
         if self.runtime not in ("auto", "keras", "onnx"):
             raise ValueError(f"runtime {self.runtime!r}; expected auto, keras or onnx")
+        check_renderer(self.renderer)
         if not 1 <= self.batch <= 64:
             raise ValueError(f"batch must be in [1, 64], got {self.batch}")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
@@ -105,7 +110,8 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
                 spec, split="expert", index=len(references), family="clear",
                 conditions=Conditions())
     refs = list(references.values())
-    common = {"max_seconds": config.max_seconds, "scenery": config.scenery}
+    common = {"max_seconds": config.max_seconds, "scenery": config.scenery,
+              "renderer": config.renderer, "full_frame": config.full_frame}
     tasks = [{"kind": "expert", "episodes": refs[i:i + 16], **common}
              for i in range(0, len(refs), 16)]
     for model in config.models:
@@ -123,6 +129,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
     from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.leaderboard import write_leaderboard
     from clonedrive.progress import progress_bar
+    from clonedrive.sim.engine import renderer_info
     from clonedrive.workers import default_workers, run_tasks
 
     out = Path(out_dir)
@@ -141,6 +148,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         "speed_control": f"drive.py's PI (kp {SPEED_KP}, ki {SPEED_KI}) at the set speed"
                          + (", target speed reduced with |steering|" if config.slow_in_curves
                             else ", no curve slowing (drive.py parity)"),
+        "rendering": {**renderer_info(config.renderer), "full_frame": config.full_frame},
         "complete": False,
     }
     results: dict[int, list[dict]] = {}

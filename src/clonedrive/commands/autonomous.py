@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "let a drive server (clonedrive drive, or Udacity's drive.py) steer our simulated car"
@@ -43,6 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=d.seed, help="the scene's seed")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks, barriers)")
+    add_render_arguments(parser, crop=False)
     parser.add_argument("--json", action="store_true", help="print the metrics as JSON")
 
 
@@ -56,6 +58,10 @@ def run(args) -> int:
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 
+    problem = renderer_error(args, "autonomous")
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     try:
         load_track(args.track)
     except TrackError as error:
@@ -64,7 +70,7 @@ def run(args) -> int:
     try:
         config = AutonomousConfig(track=args.track, laps=args.laps, speed_mph=args.speed,
                                   max_seconds=args.max_seconds, scenery=not args.no_scenery,
-                                  seed=args.seed,
+                                  seed=args.seed, renderer=args.renderer,
                                   client=ClientConfig(host=args.host, port=args.port,
                                                       connect_timeout_s=args.connect_timeout))
     except ValueError as error:

@@ -11,6 +11,7 @@ from clonedrive.commands.model_options import (
     add_steering_arguments,
     steering_options,
 )
+from clonedrive.commands.render_options import add_render_arguments, renderer_error
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
@@ -50,6 +51,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap on simulated seconds per episode (quick checks)")
     parser.add_argument("--no-scenery", action="store_true", help="road and terrain only")
+    add_render_arguments(parser)
     parser.add_argument("--out", default="runs/bench", help="output folder")
     parser.add_argument("--json", action="store_true", help="print bench.json's content")
     add_model_arguments(parser)
@@ -62,6 +64,10 @@ def run(args) -> int:
     from clonedrive.bench.suite import SuiteError, load_suite
     from clonedrive.paths import check_output_folder
 
+    problem = renderer_error(args, "bench")
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     try:
         config = BenchConfig(models=tuple(args.models), suite=args.suite,
                              splits=tuple(args.split or ()), workers=args.workers,
@@ -69,7 +75,8 @@ def run(args) -> int:
                              **steering_options(args),
                              scenery=not args.no_scenery, max_seconds=args.max_seconds,
                              offline_data=tuple(args.offline_data or ()),
-                             trust_model=args.trust_model, runtime=args.runtime)
+                             trust_model=args.trust_model, runtime=args.runtime,
+                             renderer=args.renderer, full_frame=args.full_frame)
         load_suite(config.suite)
         check_output_folder(args.out)
         report = bench(config, args.out, progress=not args.json)

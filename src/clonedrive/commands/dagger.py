@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "DAgger: the network drives (mixed with the expert), the expert labels, retrain, repeat"
@@ -72,6 +73,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-seconds", type=float, default=None,
                         help="cap on simulated seconds per episode (quick runs)")
     parser.add_argument("--no-scenery", dest="scenery", action="store_false")
+    add_render_arguments(parser)
     parser.add_argument("--seed", type=int, default=d.seed)
     parser.add_argument("--json", action="store_true", help="print dagger.json's content")
 
@@ -82,6 +84,10 @@ def run(args) -> int:
     from clonedrive.world.track import TrackError
 
     d = DaggerConfig()
+    problem = renderer_error(args, "dagger")
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     try:
         config = DaggerConfig(
             iterations=args.iterations, beta=args.beta, beta_decay=args.beta_decay,
@@ -92,7 +98,8 @@ def run(args) -> int:
             bench_splits=tuple(args.bench_split or ()), workers=args.workers, plain=args.plain,
             plain_each=args.plain_each, plain_noise=args.plain_noise,
             max_seconds=args.max_seconds,
-            scenery=args.scenery, seed=args.seed, human=tuple(args.human or ()))
+            scenery=args.scenery, seed=args.seed, human=tuple(args.human or ()),
+            renderer=args.renderer, full_frame=args.full_frame)
         for name in (*config.tracks, *config.eval_tracks):
             load_track(name)
         report = run_dagger(config, args.base, args.out, progress=not args.json)

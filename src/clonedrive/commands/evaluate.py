@@ -10,6 +10,7 @@ from clonedrive.commands.model_options import (
     add_steering_arguments,
     load_policy_from_args,
 )
+from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "drive a model in closed loop (headless) and measure laps, interventions, CTE"
@@ -66,6 +67,7 @@ def add_arguments(parser) -> None:
                              "+ 30 s)")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks, barriers)")
+    add_render_arguments(parser)
     parser.add_argument("--out", default=None,
                         help="output folder (default: eval/ beside the model)")
     parser.add_argument("--json", action="store_true", help="print eval.json's content")
@@ -97,9 +99,14 @@ def run(args) -> int:
                             video=args.video, slow_in_curves=args.slow_in_curves,
                             scenery=not args.no_scenery, batch=args.batch,
                             max_seconds=args.max_seconds, video_saliency=args.video_saliency,
-                            workers=args.workers)
+                            workers=args.workers, renderer=args.renderer,
+                            full_frame=args.full_frame)
     except ValueError as error:  # --speed nan, -5, 31...
         print(f"clonedrive evaluate: {error}", file=sys.stderr)
+        return 2
+    problem = renderer_error(args, "evaluate")
+    if problem:
+        print(problem, file=sys.stderr)
         return 2
     try:
         policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)

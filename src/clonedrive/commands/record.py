@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "record the expert driving a track as a Udacity-format log (driving_log.csv + IMG/)"
@@ -74,6 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="record in a look drawn (from --seed) from a condition family: "
                              "udacity (towards the Udacity simulator's frames: road shade, line "
                              "colour and wear, light, shadows, JPEG), or clear")
+    add_render_arguments(parser, crop=False)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 
@@ -81,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
     from clonedrive.data.recorder import RecordConfig, RecordingWriteError, record
     from clonedrive.world.track import TrackError
 
+    problem = renderer_error(args, "record")
+    if problem:
+        print(problem, file=sys.stderr)
+        return 2
     try:
         config = RecordConfig(
             track=args.track, style=args.style, laps=args.laps, seconds=args.seconds,
@@ -90,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
             header=args.header,
             relative_paths=args.relative_paths, jpeg_quality=args.jpeg_quality,
             start_time=args.start_time, scenery=not args.no_scenery, randomize=args.randomize,
-            look=args.look,
+            look=args.look, renderer=args.renderer,
         )
         summary = record(config, args.out, progress=not args.json and sys.stderr.isatty())
     except (ValueError, TrackError) as error:

@@ -76,6 +76,7 @@ from clonedrive.data.speed_labels import SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.episode.rules import EpisodeRules, Stop
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
+from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity_spec import JPEG_QUALITY
 
 CONFIG_NAME = "config.json"
@@ -109,6 +110,7 @@ class RecordConfig:
     start_time: str | None = None  #: ISO time of the first image name; None = now (local time)
     fsync_every_rows: int = 15  #: fsync the CSV this often (and at the end); 1 = every row
     turn_curvature_per_m: float | None = None  #: turns style: record where |curvature| > this
+    renderer: str = DEFAULT_RENDERER  #: who draws the frames (sim/engine.py)
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:
@@ -116,18 +118,16 @@ class RecordConfig:
         if self.laps < 1:
             raise ValueError(f"laps must be at least 1, got {self.laps}")
         if not 0.0 < self.speed_mph <= 30.0:
-            raise ValueError(f"speed_mph must be in (0, 30] (the car's top speed), got "
-                             f"{self.speed_mph}")
+            raise ValueError(f"speed_mph must be in (0, 30] (top speed), got {self.speed_mph}")
         if not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be in [0, 1] (steering units), got {self.noise}")
         if not 1 <= self.jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be in [1, 100], got {self.jpeg_quality}")
         if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
             raise ValueError(f"seconds must be a positive number of seconds, got {self.seconds}")
-        if self.max_off_road_events < 1:
-            raise ValueError("max_off_road_events must be at least 1")
-        if self.fsync_every_rows < 1:
-            raise ValueError("fsync_every_rows must be at least 1")
+        if self.max_off_road_events < 1 or self.fsync_every_rows < 1:
+            raise ValueError("max_off_road_events and fsync_every_rows must be at least 1")
+        check_renderer(self.renderer)
         if self.start_time is not None:
             datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
         self.expert_config()  # the expert's own checks (offset fraction, ...)
@@ -219,7 +219,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
     rng = np.random.default_rng(config.seed)
     expert = ExpertDriver(track, config.expert_config(), rng)
     sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize,
-                           conditions=config.conditions())
+                           conditions=config.conditions(), renderer=config.renderer)
     steering: list[float] = []
     skipped = 0
     first_name = last_name = None

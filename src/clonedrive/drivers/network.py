@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from clonedrive.drivers.crop import visible_rows
 from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
@@ -174,6 +175,9 @@ class NetworkPolicy:
         self.model = model
         self.speed_head = has_speed_head(model)
         self.input_dtype = model_input_dtype(model)
+        #: The frame rows [top, bottom) the model looks at (its first layer's Cropping2D), or
+        #: None when it looks at all of them or cannot say (a traced or ONNX model).
+        self.visible_rows = visible_rows(model)
         #: Runs the model on a batch: traced by PyTorch where that gives the same outputs
         #: (clonedrive.drivers.traced), else the model's predict_on_batch.
         self.forward = forward_for(model)

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from clonedrive.drivers.crop import visible_rows
+
 #: Batch sizes traced per model at most (a lock-step group shrinks as its runs finish: one
 #: trace per size it passes through); beyond it, predict_on_batch.
 MAX_TRACES = 16
@@ -100,7 +102,8 @@ class TracedForward:
             inputs=tuple(_spec(item) for item in self.model.inputs),
             outputs=tuple(_spec(item) for item in self.model.outputs),
             output_names=tuple(getattr(self.model, "output_names", None) or ()),
-            name=str(getattr(self.model, "name", "model")))
+            name=str(getattr(self.model, "name", "model")),
+            visible_rows=visible_rows(self.model))
 
 
 @dataclass(frozen=True)
@@ -113,6 +116,7 @@ class PortableModel:
     outputs: tuple
     output_names: tuple[str, ...]
     name: str
+    visible_rows: tuple[int, int] | None = None  #: the model's crop (drivers.crop)
 
 
 class TracedModel:
@@ -129,6 +133,7 @@ class TracedModel:
         self.outputs = list(portable.outputs)
         self.output_names = list(portable.output_names)
         self.name = portable.name
+        self.visible_rows = portable.visible_rows
 
     def predict_on_batch(self, images: np.ndarray) -> np.ndarray | list[np.ndarray]:
         import torch

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from clonedrive.episode.rules import TIME_LIMIT_FACTOR, EpisodeRules
+from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 
 #: Generated tracks used as unseen tracks start at this seed; recordings never use them.
 UNSEEN_SEED_BASE = 1000
@@ -46,12 +47,17 @@ class EvalConfig:
     #: (lap time, smoothness) to them (evaluate.reference).
     expert_reference: bool = True
     video_saliency: bool = False  #: paint the VisualBackProp mask onto the video frames
+    renderer: str = DEFAULT_RENDERER  #: "auto", "software" or "egl" (sim/engine.py)
+    #: render whole frames even where the network looks at fewer rows (runs with video always
+    #: get whole frames; the others only the rows the model's crop keeps)
+    full_frame: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.tracks, str) or not all(isinstance(t, str) and t for t in self.tracks):
             raise ValueError(f"tracks must be a tuple of track names, got {self.tracks!r}")
         if not self.speeds_mph:
             raise ValueError("give at least one set speed")
+        check_renderer(self.renderer)
         for speed in self.speeds_mph:
             _check_speed("each set speed", speed)
         if self.unseen_speed_mph is not None:

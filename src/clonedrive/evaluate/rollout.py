@@ -10,6 +10,11 @@ The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event
 network saw is saved, and the car is put back on the centreline heading along the road at the set
 speed (an intervention); a run stops when its laps have been driven or its time limit passes.
 
+A run without video renders only the rows the network's crop keeps (``render_rows``, from the
+model: :mod:`clonedrive.drivers.crop`; ``full_frame`` turns it off); the rest of each frame is
+a constant, also in its off-road frames. A run with video renders whole frames. eval.json
+records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
+
 Output file names (maps, videos, off-road frames) are made from the track's own name and the
 speed by :func:`clonedrive.paths.safe_stem`, never from the path a track was given by. eval.json
 is rewritten (atomically) as each run finishes, so an error late in an evaluation loses none of
@@ -138,6 +143,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
                             if speed_head else "")
                          + (", target speed reduced with |steering|" if first.slow_in_curves
                             else ""),
+        **_rendering(policy, first),
         "complete": False,
         "runs": [],
         "totals": _totals([]),
@@ -251,19 +257,31 @@ def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
     return int(seconds * 15)
 
 
+def _rendering(policy, config: EvalConfig) -> dict:
+    """What eval.json records about how frames were drawn: the renderer (sim/engine.py) and the
+    rows rendered for runs without video (None: whole frames)."""
+    from clonedrive.sim.engine import renderer_info
+
+    rows = None if config.full_frame else getattr(policy, "visible_rows", None)
+    return {**renderer_info(config.renderer), "render_rows": None if rows is None else
+            list(rows)}
+
+
 def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path,
-              pool: CameraPool) -> _Run:
+              pool: CameraPool, rows: tuple[int, int] | None) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
-    sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery),
-                    pool=pool)
+    filmed = config.video and not spec.unseen
+    sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery,
+                                          renderer=config.renderer,
+                                          render_rows=None if filmed else rows), pool=pool)
     try:
         rules = EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph,
                              max_seconds=config.max_seconds,
                              time_limit_factor=config.time_limit_factor)
         episode = Episode(sim, rules, track=spec.track, seed=0)
         run = _Run(index=index, spec=spec, episode=episode, name=name)
-        if config.video and not spec.unseen:
+        if filmed:
             from clonedrive.evaluate.video import VideoWriter
 
             run.video = VideoWriter(out / f"{name}.mp4", fps=sim.config.control_hz)
@@ -283,9 +301,10 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
 
     runs: list[_Run] = []
     pool = CameraPool()
+    rows = None if config.full_frame else getattr(policy, "visible_rows", None)
     try:
         for index, spec in group:
-            runs.append(_open_run(index, spec, names[index], config, out, pool))
+            runs.append(_open_run(index, spec, names[index], config, out, pool, rows))
         if config.video_saliency and any(run.video is not None for run in runs):
             from clonedrive.model.saliency import VisualBackProp
 

@@ -78,7 +78,7 @@ class DrivingWindow:
 
     def __init__(self, session: DrivingSession, *, onscreen: bool = True,
                  software: bool = False, title: str = "clonedrive sim") -> None:
-        from clonedrive.sim.scene import RenderEngine
+        from clonedrive.sim.engine import RenderEngine
 
         self.session = session
         self.onscreen = onscreen
@@ -363,7 +363,7 @@ class DrivingWindow:
         """Save the latest frame as an image file (PNG or JPEG by extension), atomically."""
         import cv2
 
-        from clonedrive.sim.scene import texture_rgb
+        from clonedrive.sim.engine import texture_rgb
 
         texture = self._texture if self._texture is not None else self.output.get_screenshot()
         if texture is None:

@@ -55,6 +55,7 @@ from clonedrive.data.recipe import (
     load_recipe,
     recipe_to_toml,
 )
+from clonedrive.drivers.crop import visible_rows
 from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 
 logger = logging.getLogger(__name__)
@@ -247,21 +248,6 @@ def train(
         history=list(recorder.history),
         dataset=data.report,
     )
-
-
-def visible_rows(model) -> tuple[int, int] | None:
-    """``(first, end)``: the rows of a 160-row frame that ``model`` looks at, when its first
-    layer after the input is a ``Cropping2D`` (as in all of ours); None when it sees them all
-    or crops otherwise."""
-    from clonedrive.udacity_spec import IMAGE_SHAPE
-
-    layers = [layer for layer in model.layers if type(layer).__name__ != "InputLayer"]
-    if not layers or type(layers[0]).__name__ != "Cropping2D" or getattr(
-            layers[0], "data_format", "channels_last") != "channels_last":
-        return None
-    (top, bottom), _ = layers[0].cropping
-    first, end = int(top), IMAGE_SHAPE[0] - int(bottom)
-    return (first, end) if 0 <= first < end <= IMAGE_SHAPE[0] else None
 
 
 def _partners(config: TrainConfig, samples):

@@ -9,7 +9,8 @@ track (lake, center camera, 8 cars 130 m apart: 488-665 against 635-794 frames/s
 ``benchmarks/evaluate.py`` reports ``shared_scene_speedup``).
 
 A :class:`CameraPool` lends one scene and rig to every simulator that asks for the same look:
-the same track geometry and theme, scenery switch, conditions, cameras and image size, and no
+the same track geometry and theme, scenery switch, conditions, cameras, image size, renderer and
+rendered rows, and no
 per-episode randomisation. A car's frame is then still a function of its pose alone
 (:meth:`CameraRig.render` places the car, renders and reads back in one call; frames are the
 same for the same pose in every scene of a track, see :mod:`clonedrive.sim.scene`), so sharing
@@ -50,7 +51,8 @@ class CameraPool:
         if config.randomize:
             return None
         return (track_key(track), bool(config.scenery), config.conditions,
-                tuple(config.cameras), int(config.image_width), int(config.image_height))
+                tuple(config.cameras), int(config.image_width), int(config.image_height),
+                config.renderer, config.render_rows)
 
     def open(self, track: Track, config, seed: int) -> CameraRig:
         """A rig for a simulator of ``track`` with ``config`` (a SimConfig) and ``seed``."""
@@ -111,10 +113,10 @@ def build_rig(track: Track, config, seed: int) -> CameraRig:
 
     randomization = RandomizationConfig() if config.randomize else None
     scene = Scene(track, scenery=config.scenery, randomization=randomization, seed=seed,
-                  conditions=config.conditions)
+                  conditions=config.conditions, renderer=config.renderer)
     try:
         return CameraRig(scene, cameras=config.cameras, width=config.image_width,
-                         height=config.image_height)
+                         height=config.image_height, rows=config.render_rows)
     except BaseException:
         scene.close()
         raise

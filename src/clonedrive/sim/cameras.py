@@ -4,6 +4,13 @@ Mounts follow the Udacity simulator's training car (UDACITY.md), in Unity axes r
 car's origin on the road under its centre: x right, y up, z forward [m]; pitched down 9.4 deg;
 60 deg vertical field of view; 320x160 pixels. Resolution and mounts are configurable.
 
+``rows=(top, bottom)`` renders only those rows of each frame (what a network that crops its
+input looks at): a buffer of ``bottom - top`` rows and a lens whose film size and offset select
+exactly that strip of the full camera's view. Frames keep their full size; the rows not rendered
+hold :data:`FILL_VALUE`. The software renderer samples textures a little differently when the
+viewport changes, so the strip is close to, not bit-identical with, the same rows of a full
+frame (``benchmarks/crop.py`` measures the difference and what it does to a model's driving).
+
 ``CameraRig.render(pose)`` places the car, renders every camera in ONE
 ``GraphicsEngine.render_frame()`` call and returns ``{camera: uint8 RGB (H, W, 3)}``. Each
 camera has its own offscreen buffer: one wide buffer cut into three display regions measured
@@ -20,7 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from clonedrive.sim.conditions import fog_alpha, jpeg_round_trip
-from clonedrive.sim.scene import FAR_M, NEAR_M, Scene, texture_rgb
+from clonedrive.sim.engine import texture_rgb
+from clonedrive.sim.scene import FAR_M, NEAR_M, Scene
 from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 
 
@@ -44,6 +52,9 @@ UDACITY_RIG: Mapping[str, CameraMount] = {
     "right": CameraMount((0.825, 1.2, 0.999)),
 }
 
+#: The value of every channel of the rows a cropped rig does not render.
+FILL_VALUE = 0
+
 #: Noise images kept per camera for pixel noise (one is picked at random each frame).
 _NOISE_BANK = 6
 
@@ -59,8 +70,9 @@ class CameraRig:
         height: int = IMAGE_HEIGHT,
         *,
         mounts: Mapping[str, CameraMount] = UDACITY_RIG,
+        rows: tuple[int, int] | None = None,
     ):
-        from panda3d.core import Camera, PerspectiveLens
+        from panda3d.core import Camera
 
         if scene.closed:
             raise RuntimeError("the scene is closed")
@@ -77,16 +89,17 @@ class CameraRig:
         self.cameras = tuple(cameras)
         self.width, self.height = int(width), int(height)
         self.mounts = {name: mounts[name] for name in self.cameras}
+        #: The rows [top, bottom) rendered; (0, height) for full frames.
+        self.rows = check_rows(rows, self.height)
         self._buffers = {}
         self._textures = {}
         self._nodes = {}
         for name in self.cameras:
             mount = self.mounts[name]
-            buffer, texture = scene.engine.make_buffer(f"camera-{name}", self.width, self.height)
-            lens = PerspectiveLens()
-            lens.set_fov(mount.horizontal_fov_deg(self.width, self.height),
-                         mount.vertical_fov_deg)
-            lens.set_near_far(NEAR_M, FAR_M)
+            top, bottom = self.rows
+            buffer, texture = scene.engine.make_buffer(f"camera-{name}", self.width,
+                                                       bottom - top)
+            lens = strip_lens(mount, self.width, self.height, self.rows)
             node = scene.car.attach_new_node(Camera(f"camera-{name}", lens))
             node.node().set_scene(scene.root)
             region = buffer.make_display_region()
@@ -150,17 +163,30 @@ class CameraRig:
         self.scene.set_car_pose(x_m, y_m, z_m, yaw_rad, pitch_rad, roll_rad)
         self.scene.engine.render_frame()
         images = {name: texture_rgb(self._textures[name]) for name in self.cameras}
+        top, bottom = self.rows
         for name, (keep, fog) in self._fog.items():
-            images[name] = np.rint(images[name] * keep + fog).astype(np.uint8)
+            images[name] = np.rint(images[name] * keep[top:bottom] + fog[top:bottom]
+                                   ).astype(np.uint8)
         if self._noise is not None:
             picks = self.scene.noise_rng.integers(0, _NOISE_BANK, len(self.cameras))
             for name, pick in zip(self.cameras, picks, strict=True):
-                noisy = images[name].astype(np.int16) + self._noise[pick]
+                noisy = images[name].astype(np.int16) + self._noise[pick, top:bottom]
                 images[name] = np.clip(noisy, 0, 255).astype(np.uint8)
+        if (top, bottom) != (0, self.height):
+            images = {name: self._full_frame(image) for name, image in images.items()}
         quality = self.scene.appearance.jpeg_quality
         if quality is not None:
             images = {name: jpeg_round_trip(image, quality) for name, image in images.items()}
         return images
+
+    def _full_frame(self, strip: np.ndarray) -> np.ndarray:
+        """A full-size frame holding ``strip`` in the rendered rows, :data:`FILL_VALUE`
+        elsewhere."""
+        frame = np.zeros((self.height, self.width, 3), dtype=np.uint8)  # calloc: cheapest
+        if FILL_VALUE:
+            frame.fill(FILL_VALUE)
+        frame[self.rows[0]:self.rows[1]] = strip
+        return frame
 
     def close(self) -> None:
         if self.closed:
@@ -176,3 +202,36 @@ class CameraRig:
 
     def __exit__(self, *exc_info) -> None:
         self.close()
+
+
+def check_rows(rows: tuple[int, int] | None, height: int) -> tuple[int, int]:
+    """``rows`` as ``(top, bottom)`` ints after checking ``0 <= top < bottom <= height``;
+    None: every row."""
+    if rows is None:
+        return 0, int(height)
+    top, bottom = (int(value) for value in rows)
+    if not 0 <= top < bottom <= height:
+        raise ValueError(f"rows {tuple(rows)} are not a strip of a {height}-row frame "
+                         f"(expected 0 <= top < bottom <= {height})")
+    return top, bottom
+
+
+def strip_lens(mount: CameraMount, width: int, height: int, rows: tuple[int, int]):
+    """A Panda3D lens for rows [top, bottom) of ``mount``'s ``width`` x ``height`` view.
+
+    The full view's focal length and film width are kept; the film is cut to the strip's
+    height and shifted (film offset, film units up from the centre) to the strip's middle, so
+    each rendered row shows what that row of the full frame shows.
+    """
+    from panda3d.core import PerspectiveLens
+
+    full = PerspectiveLens()
+    full.set_fov(mount.horizontal_fov_deg(width, height), mount.vertical_fov_deg)
+    film = full.get_film_size()
+    top, bottom = rows
+    lens = PerspectiveLens()
+    lens.set_film_size(film.x, film.y * (bottom - top) / height)
+    lens.set_focal_length(full.get_focal_length())
+    lens.set_film_offset(0.0, film.y * (0.5 - (top + bottom) / (2.0 * height)))
+    lens.set_near_far(NEAR_M, FAR_M)
+    return lens

@@ -1,10 +1,8 @@
 """The Panda3D scene of a track: road, scenery, sky, fog and the car, and the engine that draws it.
 
-:class:`RenderEngine` owns one Panda3D ``GraphicsEngine`` and its pipe. Headless by default: the
-``p3tinydisplay`` software renderer drawing into offscreen buffers (no display, no GPU). Engine
-options are set when it is created, in a config page that is removed again on ``close()``;
-nothing is set at import and no ``ShowBase`` is used, so several engines can be created and
-closed one after the other in one process.
+Each scene owns a :class:`~clonedrive.sim.engine.RenderEngine` (:mod:`clonedrive.sim.engine`):
+one Panda3D ``GraphicsEngine`` and its pipe, headless, with the software renderer
+(``p3tinydisplay``) or OpenGL through EGL (``renderer``).
 
 :class:`Scene` builds the scene graph of a :class:`~clonedrive.world.track.Track` from
 :mod:`clonedrive.sim.scenery` (geometry derived from the track and its theme) and
@@ -42,6 +40,7 @@ import numpy as np
 
 from clonedrive.sim import textures
 from clonedrive.sim.conditions import Conditions
+from clonedrive.sim.engine import DEFAULT_RENDERER, RenderEngine
 from clonedrive.sim.meshes import BakedGeom, Mesh, grid_triangles
 from clonedrive.sim.randomization import (
     Appearance,
@@ -75,113 +74,6 @@ _BIN_WATER = 0
 _BIN_SKY = 10
 _BIN_HOOD = 50
 
-_ENGINE_OPTIONS = {
-    "load-display": "p3tinydisplay",
-    "window-type": "offscreen",
-    "framebuffer-multisample": "0",
-    "multisamples": "0",
-    "sync-video": "0",
-    "audio-library-name": "null",
-    "td-ignore-mipmaps": "0",
-    "td-perspective-textures": "1",
-    "textures-power-2": "up",
-    "notify-level-display": "error",
-}
-
-
-class RenderEngine:
-    """One Panda3D graphics engine and pipe; headless (software, offscreen) by default.
-
-    ``window=True`` selects the OpenGL pipe (``pandagl``) for an interactive window; offscreen
-    buffers then come from the GPU. ``options`` adds or overrides PRC settings (strings); with
-    ``window=True``, ``{"load-display": "p3tinydisplay"}`` gives the software renderer's window
-    (for displays without OpenGL).
-    """
-
-    def __init__(self, *, window: bool = False, options: dict[str, str] | None = None):
-        from panda3d.core import GraphicsEngine, GraphicsPipeSelection, load_prc_file_data
-
-        settings = dict(_ENGINE_OPTIONS)
-        if window:
-            settings["load-display"] = "pandagl"
-            settings["window-type"] = "onscreen"
-        settings.update(options or {})
-        text = "\n".join(f"{key} {value}" for key, value in settings.items())
-        self._page = load_prc_file_data("clonedrive-render-engine", text)
-        selection = GraphicsPipeSelection.get_global_ptr()
-        if window:
-            pipe = selection.make_module_pipe(settings["load-display"])
-        else:
-            pipe = selection.make_pipe("TinyOffscreenGraphicsPipe", "p3tinydisplay")
-        if pipe is None or not pipe.is_valid():
-            self._unload()
-            kind = f"window ({settings['load-display']})" if window else \
-                "software (p3tinydisplay)"
-            raise RuntimeError(f"could not open a Panda3D {kind} graphics pipe")
-        self.window = window
-        self.pipe = pipe
-        self.engine = GraphicsEngine(pipe)
-        self._outputs: list = []
-        self.closed = False
-
-    def make_buffer(self, name: str, width: int, height: int):
-        """An offscreen RGB buffer of ``width`` x ``height`` copied to RAM after each frame.
-
-        Returns ``(buffer, texture)``; read pixels with :func:`texture_rgb`.
-        """
-        from panda3d.core import (
-            FrameBufferProperties,
-            GraphicsOutput,
-            GraphicsPipe,
-            Texture,
-            WindowProperties,
-        )
-
-        self._check_open()
-        props = FrameBufferProperties()
-        props.set_rgb_color(True)
-        props.set_color_bits(24)
-        props.set_depth_bits(24)
-        buffer = self.engine.make_output(
-            self.pipe, name, 0, props, WindowProperties.size(width, height),
-            GraphicsPipe.BF_refuse_window,
-        )
-        if buffer is None:
-            raise RuntimeError(f"could not create a {width}x{height} offscreen buffer")
-        texture = Texture(f"{name}-colour")
-        buffer.add_render_texture(texture, GraphicsOutput.RTM_copy_ram)
-        self._outputs.append(buffer)
-        return buffer, texture
-
-    def remove(self, output) -> None:
-        if output in self._outputs:
-            self._outputs.remove(output)
-            self.engine.remove_window(output)
-
-    def render_frame(self) -> None:
-        self._check_open()
-        self.engine.render_frame()
-
-    def _check_open(self) -> None:
-        if self.closed:
-            raise RuntimeError("the render engine is closed")
-
-    def _unload(self) -> None:
-        from panda3d.core import unload_prc_file
-
-        if self._page is not None:
-            unload_prc_file(self._page)
-            self._page = None
-
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.engine.remove_all_windows()
-        self._outputs.clear()
-        self.closed = True
-        self._unload()
-
-
 def _draw_bin() -> str:
     """:data:`DRAW_BIN`, added to Panda3D's bins the first time a scene needs it."""
     from panda3d.core import CullBinManager
@@ -191,19 +83,6 @@ def _draw_bin() -> str:
         bins.add_bin(DRAW_BIN, CullBinManager.BT_unsorted, bins.get_bin_sort(
             bins.find_bin("opaque")))
     return DRAW_BIN
-
-
-def texture_rgb(texture) -> np.ndarray:
-    """The RGB image (H, W, 3) uint8 of a render texture, top row first, C-contiguous."""
-    import cv2
-
-    width, height = texture.get_x_size(), texture.get_y_size()
-    # Panda3D keeps 8-bit colour in RAM as BGR(A), bottom row first. OpenCV swaps the channels
-    # and flips the rows in two passes of C code, faster than get_ram_image_as("RGB") plus a
-    # NumPy flip, with the same pixels.
-    bgr = np.frombuffer(texture.get_ram_image(), dtype=np.uint8).reshape(height, width, -1)
-    code = cv2.COLOR_BGR2RGB if bgr.shape[2] == 3 else cv2.COLOR_BGRA2RGB
-    return cv2.flip(cv2.cvtColor(bgr, code), 0)
 
 
 @dataclass
@@ -221,7 +100,8 @@ class Scene:
     Parameters: ``track`` (a Track or a name for :func:`load_track`), ``scenery`` (False: road,
     kerbs and a narrow verge only, quick to build), ``randomization`` (None: the theme's fixed
     look; a :class:`RandomizationConfig`: a look drawn from ``seed``), ``seed`` (also seeds pixel
-    noise), ``window`` (use the OpenGL pipe; see :class:`RenderEngine`), ``conditions`` (a
+    noise), ``window`` (use the OpenGL pipe; see :class:`RenderEngine`), ``renderer``
+    (``"software"``, ``"egl"`` or ``"auto"``: :mod:`clonedrive.sim.engine`), ``conditions`` (a
     :class:`~clonedrive.sim.conditions.Conditions`: road and line colours, wear, shadows,
     vegetation, sun, fog and the camera's sensor; it replaces ``randomization``).
 
@@ -238,6 +118,7 @@ class Scene:
         seed: int = 0,
         window: bool = False,
         conditions: Conditions | None = None,
+        renderer: str = DEFAULT_RENDERER,
     ):
         from panda3d.core import NodePath
 
@@ -245,7 +126,7 @@ class Scene:
         self.theme = self.track.theme
         self.randomization = randomization
         self.conditions = conditions
-        self.engine = RenderEngine(window=window)
+        self.engine = RenderEngine(window=window, renderer=renderer)
         self.closed = False
         self._rigs: list = []
         self._baked: list[BakedGeom] = []

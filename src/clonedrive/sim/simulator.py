@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from clonedrive.sim.conditions import Conditions
+from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.sim.laps import LapCounter, OffRoadEvent
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
@@ -56,6 +57,12 @@ class SimConfig:
     #: driving conditions of the scene and camera (sim/conditions.py); replaces ``randomize``
     conditions: Conditions | None = None
     vehicle: VehicleParams = field(default_factory=VehicleParams)
+    #: who draws the frames: "software" (p3tinydisplay), "egl" (OpenGL through EGL) or "auto"
+    #: (EGL where it runs on a GPU, else software); see sim/engine.py
+    renderer: str = DEFAULT_RENDERER
+    #: render only rows [top, bottom) of each frame, the rest filled with a constant (what a
+    #: network that crops its input looks at; sim/cameras.py); None: full frames
+    render_rows: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         substeps = self.physics_hz / self.control_hz
@@ -67,6 +74,12 @@ class SimConfig:
         unknown = set(self.cameras) - {"center", "left", "right"}
         if unknown:
             raise ValueError(f"unknown camera(s) {sorted(unknown)}; use center, left, right")
+        check_renderer(self.renderer)
+        if self.render_rows is not None:
+            from clonedrive.sim.cameras import check_rows
+
+            object.__setattr__(self, "render_rows", check_rows(self.render_rows,
+                                                               self.image_height))
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity import protocol
 from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
 from clonedrive.world.vehicle import Controls
@@ -441,6 +442,7 @@ class AutonomousConfig:
     scenery: bool = True
     seed: int = 0  #: the scene's seed
     client: ClientConfig = field(default_factory=ClientConfig)
+    renderer: str = DEFAULT_RENDERER  #: who draws the frames (sim/engine.py); whole frames
 
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
@@ -448,6 +450,7 @@ class AutonomousConfig:
         if not (math.isfinite(self.speed_mph) and 0.0 < self.speed_mph <= 30.0):
             raise ValueError(f"speed_mph must be in (0, 30] (the car's top speed), got "
                              f"{self.speed_mph}")
+        check_renderer(self.renderer)
         self.episode_rules()  # laps >= 1, max_seconds > 0
 
     def episode_rules(self):
@@ -467,7 +470,7 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
     from clonedrive.progress import progress_bar
     from clonedrive.sim.simulator import SimConfig, Simulator
 
-    sim_config = SimConfig(cameras=("center",), scenery=config.scenery)
+    sim_config = SimConfig(cameras=("center",), scenery=config.scenery, renderer=config.renderer)
     with Simulator(config.track, sim_config) as sim, SimulatorClient(config.client) as client:
         episode = Episode(sim, config.episode_rules(), track=config.track, seed=config.seed)
         length_m = sim.track.length_m

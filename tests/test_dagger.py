@@ -64,6 +64,7 @@ def test_config_is_validated() -> None:
     assert DaggerConfig(beta=0.5, beta_decay=0.5).beta_at(3) == pytest.approx(0.125)
 
 
+@pytest.mark.slow
 def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: Path,
                                                                       capsys) -> None:
     data = tmp_path / "expert"

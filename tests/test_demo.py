@@ -1,8 +1,11 @@
 import json
 
+import pytest
+
 from clonedrive.cli import main
 
 
+@pytest.mark.slow
 def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out), "--no-video"]) == 0

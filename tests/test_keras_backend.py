@@ -36,6 +36,7 @@ def test_a_keras_json_naming_an_installed_backend_is_respected(tmp_path, monkeyp
     assert keras_backend._keras_json_backend() is None
 
 
+@pytest.mark.slow
 def test_second_run_after_keras_wrote_its_json(tmp_path) -> None:
     """Two fresh processes with an empty KERAS_HOME: the first import writes keras.json, the
     second run must still get a working backend."""

@@ -67,6 +67,7 @@ def tiny_models(tmp_path_factory):
     return paths
 
 
+@pytest.mark.slow
 def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_path,
                                                                           tiny_models):
     suite_path = tmp_path / "tiny.toml"
@@ -103,6 +104,7 @@ def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_pa
     assert (tmp_path / "report" / "report" / "bench_parity_bench_success.png").is_file()
 
 
+@pytest.mark.slow
 def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):
     ray = pytest.importorskip("ray")
     suite_path = tmp_path / "tiny.toml"

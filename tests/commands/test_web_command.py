@@ -48,6 +48,7 @@ def test_bad_options_are_named(capsys, args, expected):
     assert error.startswith("clonedrive web: ") and expected in error
 
 
+@pytest.mark.slow
 def test_the_process_prints_its_url_with_a_token_and_warns_on_every_interface(tmp_path):
     process = subprocess.Popen(
         [sys.executable, "-m", "clonedrive", "web", "--host", "0.0.0.0", "--port", "0",

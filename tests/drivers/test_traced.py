@@ -75,6 +75,7 @@ def test_a_trace_that_differs_is_not_used(real_frames) -> None:
     assert first[0, 0] < second[0, 0]  # each call ran the layer's Python again
 
 
+@pytest.mark.slow
 def test_traces_are_bounded_and_onnx_is_not_traced(real_frames) -> None:
     pytest.importorskip("onnxruntime")
     from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes

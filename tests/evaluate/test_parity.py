@@ -98,6 +98,7 @@ def run_json(capsys: pytest.CaptureFixture, argv: list[str]) -> dict:
     return json.loads(captured.out)
 
 
+@pytest.mark.slow
 def test_evaluate_and_autonomous_agree_on_laps_interventions_and_cte(
         files: dict[str, Path], drive_server: int, tmp_path: Path,
         capsys: pytest.CaptureFixture) -> None:

@@ -185,6 +185,7 @@ def test_runs_spread_over_worker_processes_give_the_same_results(tmp_path):
         assert two["mean_abs_cte_m"] == pytest.approx(one["mean_abs_cte_m"], abs=0.05)
 
 
+@pytest.mark.slow
 def test_worker_processes_drive_with_the_policys_steering_filter_and_hold(tmp_path):
     """The workers build their own policy from the model file: it must steer through the same
     filter, hold and mirror averaging as the policy evaluate was given."""
@@ -210,6 +211,7 @@ def test_worker_processes_drive_with_the_policys_steering_filter_and_hold(tmp_pa
         assert spread == pytest.approx(alone, rel=0.2)
 
 
+@pytest.mark.slow
 def test_parts_are_one_evaluation_scheduled_on_one_pool(tmp_path):
     """The demo's shape: a part with two laps on a built-in track, a part on an unseen track
     with one lap; one eval.json holds both parts' runs in order, as each part alone gives them."""

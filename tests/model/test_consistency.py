@@ -95,6 +95,7 @@ def test_the_loss_adds_the_weighted_squared_difference_of_each_pairs_errors() ->
     assert ConsistentMSE.from_config(ConsistentMSE(2.5).get_config()).weight == 2.5
 
 
+@pytest.mark.slow
 def test_a_consistency_run_trains_resumes_and_drives(recording, tmp_path) -> None:
     config = TrainConfig(model="fast", batch_size=16, epochs=1, learning_rate=1e-3,
                          speed_head=True, export_h5=False, consistency=5.0)

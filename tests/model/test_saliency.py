@@ -113,6 +113,7 @@ def test_a_model_cropping_less_has_masks_from_its_own_top_row() -> None:
         build_model("fast", crop_top_px=120)
 
 
+@pytest.mark.slow
 def test_saliency_videos_from_worker_processes_load_the_keras_model(tmp_path) -> None:
     """Workers normally run the model's traces without Keras; VisualBackProp needs the Keras
     model, so with --video-saliency they load the model file."""

@@ -83,6 +83,7 @@ def test_models_with_an_unknown_second_output_are_refused(tmp_path) -> None:
         load_policy(tmp_path / "odd.keras")
 
 
+@pytest.mark.slow
 def test_training_with_both_losses_learns_the_speed_and_drives(tmp_path) -> None:
     recording = tmp_path / "expert"
     record(RecordConfig(track="mountain", seconds=4.0, speed_mph=20.0, scenery=False,

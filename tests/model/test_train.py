@@ -44,6 +44,7 @@ def _weights(path: Path) -> list[np.ndarray]:
     return keras.saving.load_model(path, safe_mode=True).get_weights()
 
 
+@pytest.mark.slow
 def test_train_writes_every_output_and_resumes(damaged_recordings, tmp_path: Path) -> None:
     interrupted = tmp_path / "interrupted"
     first = train(dataclasses.replace(FAST, epochs=1), damaged_recordings, interrupted,
@@ -135,6 +136,7 @@ def test_early_stopping_counts_epochs_since_the_best(tmp_path: Path) -> None:
     assert not _run_recorder_class()(tmp_path, FAST, history, {}).should_stop()
 
 
+@pytest.mark.slow
 def test_training_logs_one_line_per_epoch_when_not_on_a_terminal(damaged_recordings,
                                                                   tmp_path: Path) -> None:
     """Output to a file or pipe gets Keras's one line per epoch, not the progress bar's frames."""

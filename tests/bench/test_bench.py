@@ -88,6 +88,14 @@ def test_bench_writes_its_files_and_the_same_results_with_1_and_2_workers(tmp_pa
     assert runs[1]["conditions"]["latency_steps"] == 2
     assert runs[0]["elapsed_s"] == pytest.approx(3.0)
     assert one["methods"]["tiny"]["scores"]["a"]["success_pct"]["n"] == 1
+    # Every run has a driving score in [0, 1]; split figures and methods carry 95 % intervals.
+    assert all(0.0 <= r["scores"]["driving_score"] <= 1.0 and r["route_m"] > 0 for r in runs)
+    split = one["models"][f"tiny={tiny_models[0]}"]["splits"]["a"]
+    for figure in ("success_pct", "interventions_per_km", "driving_score"):
+        interval = split["ci"][figure]
+        assert interval["n"] == 2 and interval["low"] <= interval["value"] <= interval["high"]
+    method_ci = one["methods"]["tiny"]["ci"]["a"]["driving_score"]
+    assert method_ci["low"] <= method_ci["value"] <= method_ci["high"]
     for name in ("bench.json", "leaderboard.md", "leaderboard.html", "bench_success.png",
                  "bench_lap_time.png"):
         assert (tmp_path / "w1" / name).is_file()

@@ -61,6 +61,7 @@ def _result(spec: EpisodeSpec, episode: Episode, lap_time_s: float | None) -> di
         "conditions_seed": spec.seed, "conditions": spec.conditions.to_dict(),
         "lap_time_s": None if lap_time_s is None else round(lap_time_s, 3),
         "clean": bool(summary["laps_completed"] >= spec.laps),
+        "route_m": round(float(episode.sim.track.length_m) * spec.laps, 1),
     })
     return summary
 

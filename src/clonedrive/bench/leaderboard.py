@@ -23,32 +23,47 @@ def _value(value, digits: int = 2) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
+def _ci(value, interval: dict | None, digits: int = 2) -> str:
+    """A figure with its 95 % interval, ``0.83 [0.71, 0.92]`` (the figure alone without one)."""
+    if value is None:
+        return "-"
+    if not interval or interval.get("low") is None:
+        return _value(value, digits)
+    return f"{value:.{digits}f} [{interval['low']:.{digits}f}, {interval['high']:.{digits}f}]"
+
+
 def tables(report: dict) -> tuple[list[str], list[list[str]], list[str], list[list[str]]]:
     """(method header, method rows, model header, model rows) of the leaderboard."""
     splits = report.get("split_names", [])
-    method_head = ["method", *[f"{s} success %" for s in splits], "interv./km",
-                   "lap-time ratio", "smoothness ratio"]
+    method_head = ["method", *[f"{s} success %" for s in splits], "driving score [95 % CI]",
+                   "interv./km", "lap-time ratio", "smoothness ratio"]
     method_rows = []
     for label, method in report.get("methods", {}).items():
         scores = method.get("scores") or {}
         overall = scores.get("overall", {})
+        score = (method.get("ci") or {}).get("overall", {}).get("driving_score", {})
         method_rows.append([label, *[_pm(scores.get(s, {}).get("success_pct", {}))
                                      for s in splits],
+                            _ci(score.get("value"), score),
                             _pm(overall.get("interventions_per_km", {}), 2),
                             _pm(overall.get("lap_time_ratio", {}), 3),
                             _pm(overall.get("smoothness_ratio", {}), 2)])
-    model_head = ["model", "split", "runs", "success %", "interv./km", "autonomy %",
-                  "mean |CTE| m", "lap-time ratio", "smoothness ratio"]
+    model_head = ["model", "split", "runs", "success % [95 % CI]", "driving score [95 % CI]",
+                  "interv./km [95 % CI]", "autonomy %", "mean |CTE| m", "lap-time ratio",
+                  "smoothness ratio"]
     model_rows = []
     for entry, model in report.get("models", {}).items():
         for split, s in model.get("splits", {}).items():
-            model_rows.append([entry, split, str(s["runs"]), _value(s["success_pct"], 1),
-                               _value(s["interventions_per_km"]), _value(s["autonomy_pct"], 1),
-                               _value(s["mean_abs_cte_m"]), _value(s["lap_time_ratio"], 3),
-                               _value(s["smoothness_ratio"])])
+            ci = s.get("ci") or {}
+            model_rows.append([entry, split, str(s["runs"]),
+                               _ci(s["success_pct"], ci.get("success_pct"), 1),
+                               _ci(s.get("driving_score"), ci.get("driving_score")),
+                               _ci(s["interventions_per_km"], ci.get("interventions_per_km")),
+                               _value(s["autonomy_pct"], 1), _value(s["mean_abs_cte_m"]),
+                               _value(s["lap_time_ratio"], 3), _value(s["smoothness_ratio"])])
         if "offline_mse" in model:
             model_rows.append([entry, "offline MSE", "", _value(model["offline_mse"], 5),
-                               "", "", "", "", ""])
+                               "", "", "", "", "", ""])
     return method_head, method_rows, model_head, model_rows
 
 

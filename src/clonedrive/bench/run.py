@@ -22,7 +22,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
+from clonedrive.bench.scores import (
+    correlation,
+    method_intervals,
+    method_scores,
+    run_scores,
+    split_scores,
+)
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
 from clonedrive.config import config_to_dict, write_json_atomic
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
@@ -206,6 +212,7 @@ def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchCon
         members = [models[e] for e in method["models"]]
         complete = [m for m in members if set(m["splits"]) == set(split_names)]
         method["scores"] = method_scores(complete, split_names) if complete else {}
+        method["ci"] = method_intervals(complete, split_names) if complete else {}
     return {"reference": reference, "models": models, "methods": methods,
             "split_names": split_names}
 

@@ -24,7 +24,21 @@ from collections.abc import Sequence
 import numpy as np
 
 SPLIT_FIGURES = ("success_pct", "interventions_per_km", "autonomy_pct", "mean_abs_cte_m",
-                 "lap_time_ratio", "smoothness_ratio")
+                 "lap_time_ratio", "smoothness_ratio", "driving_score")
+#: The driving score's factor per intervention (CARLA-style: completion x penalties).
+INTERVENTION_PENALTY = 0.7
+
+
+def driving_score(run: dict) -> float:
+    """Route completion (distance driven / the episode's route, at most 1; a run without a
+    route length counts 1 if clean, else 0) times :data:`INTERVENTION_PENALTY` per
+    intervention: 1.0 is the whole route without leaving the road."""
+    route = run.get("route_m")
+    if route:
+        completion = min(1.0, float(run["distance_m"]) / float(route))
+    else:
+        completion = 1.0 if run["clean"] else 0.0
+    return round(completion * INTERVENTION_PENALTY ** int(run["interventions"]), 4)
 
 
 def run_scores(run: dict, reference: dict | None) -> dict:
@@ -37,6 +51,7 @@ def run_scores(run: dict, reference: dict | None) -> dict:
         "mean_abs_cte_m": run["mean_abs_cte_m"],
         "lap_time_ratio": None,
         "smoothness_ratio": None,
+        "driving_score": driving_score(run),
     }
     if reference is not None:
         if run.get("lap_time_s") and reference.get("lap_time_s"):
@@ -65,6 +80,21 @@ def split_scores(runs: Sequence[dict]) -> dict:
         "mean_abs_cte_m": _mean([r["scores"]["mean_abs_cte_m"] for r in runs]),
         "lap_time_ratio": _mean([r["scores"]["lap_time_ratio"] for r in clean]),
         "smoothness_ratio": _mean([r["scores"]["smoothness_ratio"] for r in runs]),
+        "driving_score": _mean([r["scores"]["driving_score"] for r in runs]),
+        "ci": split_intervals(runs),
+    }
+
+
+def split_intervals(runs: Sequence[dict]) -> dict:
+    """95 % bootstrap intervals over a split's episodes: success %, interventions per km
+    (pooled), driving score (:mod:`clonedrive.bench.stats`)."""
+    from clonedrive.bench.stats import bootstrap_ci, ratio_ci
+
+    return {
+        "success_pct": bootstrap_ci([100.0 * bool(r["scores"]["clean"]) for r in runs]),
+        "interventions_per_km": ratio_ci([r["interventions"] for r in runs],
+                                         [r["distance_m"] / 1000.0 for r in runs]),
+        "driving_score": bootstrap_ci([r["scores"]["driving_score"] for r in runs]),
     }
 
 
@@ -85,6 +115,24 @@ def method_scores(models: Sequence[dict], split_names: Sequence[str]) -> dict:
             figures[figure] = {"mean": round(float(np.mean(values)), 4),
                                "std": None if std is None else round(std, 4), "n": len(values)}
         out[split] = figures
+    return out
+
+
+def method_intervals(models: Sequence[dict], split_names: Sequence[str]) -> dict:
+    """Per split (and overall): 95 % intervals of a method's success % and driving score from
+    a hierarchical bootstrap over its models (training seeds) and their episodes."""
+    from clonedrive.bench.stats import hierarchical_ci
+
+    out = {}
+    for split in [*split_names, "overall"]:
+        groups = [[r for r in m["runs"] if split == "overall" or r["split"] == split]
+                  for m in models]
+        out[split] = {
+            "success_pct": hierarchical_ci([[100.0 * bool(r["scores"]["clean"]) for r in g]
+                                            for g in groups]),
+            "driving_score": hierarchical_ci([[r["scores"]["driving_score"] for r in g]
+                                              for g in groups]),
+        }
     return out
 
 

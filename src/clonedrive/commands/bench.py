@@ -20,18 +20,24 @@ DESCRIPTION = (
     "held-out conditions. The expert drives each track and speed cap once as the reference. "
     "Writes bench.json, leaderboard.md and leaderboard.html with plots. Give models as PATH or "
     "LABEL=PATH; models with the same label (one per training seed) are reported as mean +- "
-    "std. Episodes run in batches on --workers processes (default: one per CPU core), or on "
-    "Ray with --ray; the results are the same either way."
+    "std. Every figure carries a 95 % bootstrap interval over episodes (and over a method's "
+    "models). Episodes run in batches on --workers processes (default: one per CPU core), or on "
+    "Ray with --ray; the results are the same either way. `clonedrive bench compare A B` "
+    "compares two bench runs (a folder or bench.json, PATH:LABEL for one method of it) on the "
+    "episodes both drove: the difference in each figure with its interval, a permutation-test "
+    "p-value, and a sentence saying whether A or B is better."
 )
 #: Example command lines, shown at the end of ``clonedrive bench --help``.
 EXAMPLES = (
     "clonedrive bench runs/x/model.keras --out runs/x/bench",
     "clonedrive bench a=runs/a/model.keras b=runs/b/model.keras --split new-tracks-hard",
+    "clonedrive bench compare runs/a/bench runs/b/bench",
 )
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("models", nargs="+", metavar="MODEL", help="PATH or LABEL=PATH")
+    parser.add_argument("models", nargs="+", metavar="MODEL",
+                        help="PATH or LABEL=PATH; or: compare A B (two bench runs)")
     parser.add_argument("--suite", default=DEFAULT_SUITE,
                         help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE})")
     parser.add_argument("--split", action="append", default=None, metavar="NAME",
@@ -59,6 +65,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    if args.models[0] == "compare":
+        return _compare(args)
     from clonedrive.bench.leaderboard import tables
     from clonedrive.bench.run import BenchConfig, bench
     from clonedrive.bench.suite import SuiteError, load_suite
@@ -91,4 +99,28 @@ def run(args) -> int:
     for row in [head, *rows]:
         print("  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)))
     print(f"wrote {args.out}/bench.json, leaderboard.md, leaderboard.html")
+    return 0
+
+
+def _compare(args) -> int:
+    """``bench compare A B``: print each figure's paired comparison (or the JSON)."""
+    from clonedrive.bench.compare import CompareError, compare
+
+    if len(args.models) != 3:
+        print("clonedrive bench: compare takes two bench runs: compare A B", file=sys.stderr)
+        return 2
+    try:
+        result = compare(args.models[1], args.models[2])
+    except (CompareError, OSError, ValueError) as error:
+        print(f"clonedrive bench: {error}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    print(f"A = {result['a']}, B = {result['b']}, suite {result['suite']}")
+    for item in result["comparisons"]:
+        if item["difference"] is not None:
+            print(f"  {item['figure']}: A - B = {item['difference']:+.4g} "
+                  f"[{item['low']:+.4g}, {item['high']:+.4g}] over {item['episodes']} episodes")
+        print(f"    {item['sentence']}")
     return 0

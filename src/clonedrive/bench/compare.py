@@ -1,0 +1,81 @@
+"""``clonedrive bench compare A B``: two methods on the same episodes, with confidence.
+
+A and B each name a bench run (a folder holding ``bench.json``, or the file) and optionally one
+of its methods (``PATH:LABEL``; without a label the run must hold one method). A method's value
+on an episode is the mean over its models (its training seeds) on that episode; episodes pair by
+the suite's episode key (``split/index``), so both runs must come from the same suite. Each
+figure's comparison is :func:`clonedrive.bench.stats.paired_comparison`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+#: (figure, per-run value, higher is better) of a comparison, in the order reported.
+FIGURES: tuple[tuple[str, Callable[[dict], float | None], bool], ...] = (
+    ("driving score", lambda run: run["scores"]["driving_score"], True),
+    ("success %", lambda run: 100.0 * bool(run["scores"]["clean"]), True),
+    ("interventions per km", lambda run: run["scores"]["interventions_per_km"], False),
+    ("lap time ratio", lambda run: run["scores"]["lap_time_ratio"], False),
+)
+
+
+class CompareError(ValueError):
+    """A bench run or method that cannot be compared; the message says which and why."""
+
+
+def load_method(spec: str) -> tuple[str, dict, list[dict]]:
+    """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of every model of the method)."""
+    from clonedrive.config import read_json
+
+    path_text, _, label = spec.rpartition(":") if not Path(spec).exists() else (spec, "", "")
+    if not path_text:
+        path_text, label = label, ""
+    path = Path(path_text)
+    path = path / "bench.json" if path.is_dir() else path
+    if not path.is_file():
+        raise CompareError(f"{spec}: no bench.json there")
+    report = read_json(path)
+    methods = report.get("methods")
+    if not isinstance(methods, dict) or not methods:
+        raise CompareError(f"{path}: not a bench.json with methods")
+    if not label:
+        if len(methods) != 1:
+            raise CompareError(f"{path} holds {len(methods)} methods "
+                               f"({', '.join(sorted(methods))}): name one as PATH:LABEL")
+        label = next(iter(methods))
+    if label not in methods:
+        raise CompareError(f"{path}: no method {label!r} (it has {', '.join(sorted(methods))})")
+    models = [report["models"][entry] for entry in methods[label]["models"]]
+    runs = [run for model in models for run in model.get("runs", [])]
+    return f"{label} ({path.parent.name})", report.get("suite", {}), runs
+
+
+def per_episode(runs: list[dict], value: Callable[[dict], float | None]) -> dict[str, float]:
+    """Episode key -> the mean over the method's models of ``value`` (episodes where no model
+    has a value are left out)."""
+    by_key: dict[str, list[float]] = {}
+    for run in runs:
+        figure = value(run)
+        if figure is not None:
+            by_key.setdefault(run["key"], []).append(float(figure))
+    return {key: float(np.mean(values)) for key, values in by_key.items()}
+
+
+def compare(spec_a: str, spec_b: str, *, seed: int = 0) -> dict:
+    """Every figure of :data:`FIGURES` compared between the methods ``spec_a`` and ``spec_b``."""
+    from clonedrive.bench.stats import paired_comparison
+
+    name_a, suite_a, runs_a = load_method(spec_a)
+    name_b, suite_b, runs_b = load_method(spec_b)
+    if suite_a.get("id") != suite_b.get("id"):
+        raise CompareError(f"different suites ({suite_a.get('id')} and {suite_b.get('id')}): "
+                           "their episodes do not pair")
+    results = [paired_comparison(per_episode(runs_a, value), per_episode(runs_b, value),
+                                 figure=figure, higher_is_better=higher, names=(name_a, name_b),
+                                 seed=seed)
+               for figure, value, higher in FIGURES]
+    return {"a": name_a, "b": name_b, "suite": suite_a.get("id"), "comparisons": results}

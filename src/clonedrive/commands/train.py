@@ -106,16 +106,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="no progress output; print one JSON object at the end")
 
 
-_CONFIG_OPTIONS = (
-    "model", "epochs", "learning_rate", "batch_size", "split", "val_fraction", "block_s",
-    "correction", "balance", "augment", "early_stopping_patience", "dropout", "seed", "workers",
-    "cache", "export_h5", "speed_head", "speed_loss_weight", "speed_loss", "speed_headroom",
-    "init_from", "crop_top_px", "consistency",
-)
+def _overrides(args: argparse.Namespace, config_class) -> dict:
+    """The options given on the command line that are fields of ``config_class`` (options left
+    out stay unset, so a resumed run keeps its own settings)."""
+    import dataclasses
 
-
-def _overrides(args: argparse.Namespace) -> dict:
-    return {name: getattr(args, name) for name in _CONFIG_OPTIONS if hasattr(args, name)}
+    return {field.name: getattr(args, field.name) for field in dataclasses.fields(config_class)
+            if hasattr(args, field.name)}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -140,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
             if not source:
                 raise ValueError("nothing to train on: give --recipe FILE or DIR [DIR ...]")
         try:
-            config = dataclasses.replace(base, **_overrides(args))
+            config = dataclasses.replace(base, **_overrides(args, TrainConfig))
         except ValueError as error:  # a bad option: refused before anything is read
             print(f"clonedrive train: {error}", file=sys.stderr)
             return 2

@@ -61,6 +61,7 @@ import numpy as np
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.config import save_config, write_json_atomic
 from clonedrive.sim.engine import DEFAULT_RENDERER
+from clonedrive.world.vehicle import check_set_speed
 
 DAGGER_JSON = "dagger.json"
 DAGGER_PNG = "dagger.png"
@@ -114,8 +115,7 @@ class DaggerConfig:
             raise ValueError("give at least one track to collect on")
         if not self.eval_tracks and not self.eval_unseen:
             raise ValueError("give at least one evaluation track (or eval_unseen)")
-        if not 0.0 < self.speed_mph <= 30.0:
-            raise ValueError(f"speed_mph must be in (0, 30], got {self.speed_mph}")
+        check_set_speed(self.speed_mph)
         for name in ("laps", "epochs", "eval_laps"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")

@@ -49,7 +49,7 @@ def test_option_defaults_are_the_configs_defaults():
 @pytest.mark.parametrize("speed", ["nan", "-5", "inf", "0"])
 def test_a_bad_set_speed_is_refused_by_every_driving_verb(speed, tmp_path, capsys):
     assert main(["record", "--out", str(tmp_path / "rec"), "--speed", speed]) == 2
-    assert "speed_mph must be in (0, 30]" in capsys.readouterr().err
+    assert "speed_mph must be a speed in (0, 30] mph" in capsys.readouterr().err
     assert not (tmp_path / "rec").exists()
 
     out = tmp_path / "eval"
@@ -60,7 +60,11 @@ def test_a_bad_set_speed_is_refused_by_every_driving_verb(speed, tmp_path, capsy
     assert not out.exists()
 
     assert main(["autonomous", "--speed", speed, "--json"]) == 2
-    assert "speed_mph must be in (0, 30]" in capsys.readouterr().err
+    assert "speed_mph must be a speed in (0, 30] mph" in capsys.readouterr().err
+
+    if speed != "0":  # drive.py parks the car at 0
+        assert main(["drive", str(tmp_path / "none.keras"), "--speed", speed]) == 2
+        assert "--speed must be a speed in (0, 30] mph" in capsys.readouterr().err
 
 
 def test_bad_evaluate_options_are_named(tmp_path, capsys):

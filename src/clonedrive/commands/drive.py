@@ -15,6 +15,7 @@ from clonedrive.commands.model_options import (
 )
 from clonedrive.udacity.server_config import DriveServerConfig
 from clonedrive.udacity_spec import SET_SPEED_MPH
+from clonedrive.world.vehicle import check_set_speed
 
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"
 DESCRIPTION = (
@@ -75,9 +76,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # our own lines say enough
-    if not 0 <= args.speed <= 30:  # also nan
-        print(f"clonedrive drive: --speed {args.speed} mph is outside 0..30", file=sys.stderr)
-        return 2
+    if args.speed != 0:  # 0 parks the car, as drive.py allows
+        try:
+            check_set_speed(args.speed, "--speed")
+        except ValueError as error:
+            print(f"clonedrive drive: {error}", file=sys.stderr)
+            return 2
     try:
         config = DriveServerConfig(
             host=args.host, port=args.port, image_folder=args.image_folder,

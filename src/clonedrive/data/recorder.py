@@ -78,6 +78,7 @@ from clonedrive.episode.rules import EpisodeRules, Stop
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity_spec import JPEG_QUALITY
+from clonedrive.world.vehicle import check_set_speed
 
 CONFIG_NAME = "config.json"
 #: Steps queued for the writer thread at most (bounds memory; each holds three images).
@@ -117,8 +118,7 @@ class RecordConfig:
             raise ValueError(f"style {self.style!r} is not one of {', '.join(STYLES)}")
         if self.laps < 1:
             raise ValueError(f"laps must be at least 1, got {self.laps}")
-        if not 0.0 < self.speed_mph <= 30.0:
-            raise ValueError(f"speed_mph must be in (0, 30] (top speed), got {self.speed_mph}")
+        check_set_speed(self.speed_mph)
         if not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be in [0, 1] (steering units), got {self.noise}")
         if not 1 <= self.jpeg_quality <= 100:

@@ -6,22 +6,20 @@ Kept apart from the rollout so that reading the defaults loads neither the simul
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from clonedrive.episode.rules import TIME_LIMIT_FACTOR, EpisodeRules
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
+from clonedrive.world.vehicle import TOP_SPEED_MPH, check_set_speed
 
 #: Generated tracks used as unseen tracks start at this seed; recordings never use them.
 UNSEEN_SEED_BASE = 1000
 #: The car's top speed [mph]: set speeds above it cannot be held.
-MAX_SET_SPEED_MPH = 30.0
+MAX_SET_SPEED_MPH = TOP_SPEED_MPH
 
 
 def _check_speed(name: str, value: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-            or not 0.0 < value <= MAX_SET_SPEED_MPH:
-        raise ValueError(f"{name} must be a speed in (0, {MAX_SET_SPEED_MPH:g}] mph, got {value!r}")
+    check_set_speed(value, name)
 
 
 @dataclass(frozen=True)

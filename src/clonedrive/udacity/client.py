@@ -36,7 +36,7 @@ import numpy as np
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity import protocol
 from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
-from clonedrive.world.vehicle import Controls
+from clonedrive.world.vehicle import Controls, check_set_speed
 
 logger = logging.getLogger("clonedrive.client")
 
@@ -447,9 +447,7 @@ class AutonomousConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.track, str) or not self.track:
             raise ValueError(f"track must be a track name, got {self.track!r}")
-        if not (math.isfinite(self.speed_mph) and 0.0 < self.speed_mph <= 30.0):
-            raise ValueError(f"speed_mph must be in (0, 30] (the car's top speed), got "
-                             f"{self.speed_mph}")
+        check_set_speed(self.speed_mph)
         check_renderer(self.renderer)
         self.episode_rules()  # laps >= 1, max_seconds > 0
 

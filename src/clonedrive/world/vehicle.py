@@ -58,6 +58,20 @@ class VehicleParams:
         return math.radians(self.max_wheel_angle_deg)
 
 
+#: The car's top speed [mph]: a set speed above it cannot be held.
+TOP_SPEED_MPH = round(VehicleParams.top_speed_mps / MPH_TO_MPS, 6)
+
+
+def check_set_speed(value: object, name: str = "speed_mph") -> float:
+    """``value`` as a set speed [mph] in (0, :data:`TOP_SPEED_MPH`], or ``ValueError`` naming
+    ``name`` (NaN, infinity, booleans and text refused): the one speed check of every command."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
+            or not 0.0 < value <= TOP_SPEED_MPH:
+        raise ValueError(f"{name} must be a speed in (0, {TOP_SPEED_MPH:g}] mph (the car's top "
+                         f"speed), got {value!r}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class VehicleState:
     """Pose in the world frame and velocities in the body frame."""

@@ -14,7 +14,6 @@ falls back to a full drawing, so nothing is cut off.
 
 from __future__ import annotations
 
-import hashlib
 from collections import OrderedDict
 from pathlib import Path
 
@@ -225,7 +224,4 @@ def _background(track: Track, top: float) -> _Background:
 
 
 def _track_key(track: Track) -> tuple:
-    digest = hashlib.blake2b(digest_size=16)
-    for array in (track.xyz, track.width, track.right_normal):
-        digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
-    return track.name, digest.hexdigest()
+    return track.name, track.geometry_key()

@@ -6,23 +6,40 @@ jerk and lateral figures by the expert's on the same track and cap. :func:`exper
 drives the expert (no steering noise, cameras off: physics only, fast) from the evaluation's
 start through the episode runner, under the same rules as the evaluated car, and returns its
 run summary (``lap_time_s``: the first clean lap's time, from a standing start, as for the
-network). Results are cached per (track, speed, laps, cap) within a process.
+network). Results are cached within a process per (track geometry, speed, laps, cap): a track
+file edited between two evaluations gets a fresh reference, a renamed copy reuses it.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+import threading
+from collections import OrderedDict
+
+#: Expert references kept per process (the oldest dropped first).
+CACHED_REFERENCES = 256
+_CACHE: OrderedDict = OrderedDict()
+_CACHE_LOCK = threading.Lock()
 
 
 def expert_reference(track: str, speed_mph: float, *, laps: int = 1,
                      max_seconds: float | None = None) -> dict:
     """The expert's run summary on ``track`` at up to ``speed_mph`` (see the module doc)."""
-    return dict(_expert_reference(str(track), float(speed_mph), int(laps), max_seconds))
+    from clonedrive.world.catalog import load_track
+
+    loaded = load_track(track)
+    key = (loaded.geometry_key(), float(speed_mph), int(laps), max_seconds)
+    with _CACHE_LOCK:
+        if key not in _CACHE:
+            _CACHE[key] = _drive_expert(loaded, str(track), float(speed_mph), int(laps),
+                                        max_seconds)
+            while len(_CACHE) > CACHED_REFERENCES:
+                _CACHE.popitem(last=False)
+        _CACHE.move_to_end(key)
+        return dict(_CACHE[key])
 
 
-@lru_cache(maxsize=256)
-def _expert_reference(track: str, speed_mph: float, laps: int, max_seconds: float | None
-                      ) -> dict:
+def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: float | None
+                  ) -> dict:
     from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
     from clonedrive.episode.drivers import ExpertCar
     from clonedrive.episode.rules import EpisodeRules
@@ -31,7 +48,7 @@ def _expert_reference(track: str, speed_mph: float, laps: int, max_seconds: floa
 
     with Simulator(track, SimConfig(cameras=())) as sim:
         episode = Episode(sim, EpisodeRules(laps=laps, set_speed_mph=speed_mph,
-                                            max_seconds=max_seconds), track=track)
+                                            max_seconds=max_seconds), track=name)
         expert = ExpertDriver(sim.track, ExpertConfig(speed_mph=speed_mph))
         Runner([episode], PerCar([ExpertCar(expert)])).run()
         return episode.trace.summary()

@@ -426,6 +426,17 @@ class Track:
         yaw = float(self.heading[0]) + (math.pi if reverse else 0.0)
         return float(x), float(y), float(z), float(wrap_angle(yaw))
 
+    def geometry_key(self) -> str:
+        """A digest of the centreline, widths and normals: the same for tracks that drive alike
+        whatever their name, different for an edited track file (keys caches of what a track
+        gives: expert references, maps)."""
+        import hashlib
+
+        digest = hashlib.blake2b(digest_size=16)
+        for array in (self.xyz, self.width, self.right_normal):
+            digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
+        return digest.hexdigest()
+
     # ------------------------------------------------------------------ summary figures
     @property
     def min_radius_m(self) -> float:

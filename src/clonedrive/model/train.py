@@ -385,8 +385,8 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
                   ) -> _PreparedData:
     """expand -> speed-label headroom -> balance -> split -> decode the used images once
     (unusable ones skipped)."""
-    from clonedrive.data.balance import balance_steering, save_balance_plots
-    from clonedrive.data.batches import FRAME_BYTES, ImageCache
+    from clonedrive.data.balance import save_balance_plots
+    from clonedrive.data.batches import FRAME_BYTES
     from clonedrive.data.recipe import expand
     from clonedrive.data.split import split_samples
 
@@ -424,25 +424,7 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
                      f"braking profile up to {config.speed_headroom:g}x it (headroom, before "
                      "balancing)")
 
-    balance_rng = np.random.default_rng([config.seed, 1])
-    kept_for_speed = 0
-    if config.balance:
-        balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
-        keep = balanced.keep
-        if config.speed_head:
-            # Steering balancing thins out the straight-ahead samples, and with them the
-            # braking zones before bends: the samples the speed head learns slowing from.
-            slowing = np.flatnonzero(samples.target_speed_mph < SLOWING_LABEL_MPH)
-            keep = np.union1d(keep, slowing)
-            kept_for_speed = len(keep) - len(balanced.keep)
-            lines.append(f"speed head: {kept_for_speed} samples where the "
-                         f"expert slows below {SLOWING_LABEL_MPH:g} mph kept back")
-        samples = samples.subset(keep)
-        lines.append(balanced.summary())
-    else:
-        balanced = balance_steering(samples.steering, balance_rng, bins=config.balance_bins)
-        balanced = _unbalanced(balanced)
-        lines.append(f"balancing off: {len(samples)} samples")
+    samples, balanced, kept_for_speed = _balance(config, samples, lines)
     save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
     split = split_samples(
         samples, config.split, np.random.default_rng([config.seed, 2]),
@@ -451,14 +433,7 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     lines.append(split.description)
 
     samples = samples.compact()
-    limit = config.cache_memory_limit_mb * 1024**2
-    if config.cache == "memory":
-        cache = ImageCache(samples.unique_paths)
-    elif config.cache == "memmap":
-        cache = ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE, memory_limit_bytes=0)
-    else:
-        cache = ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
-                           memory_limit_bytes=limit)
+    cache = _open_cache(config, samples, out)
     lines.append(
         f"image cache: {len(cache)} images, {len(cache) * FRAME_BYTES / 1e6:.0f} MB "
         + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
@@ -516,6 +491,43 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     }
     lines.append(f"training on {len(train_samples)} samples, validating on {len(val_samples)}")
     return _PreparedData(train_samples, val_samples, cache, report, "\n".join(lines))
+
+
+def _balance(config: TrainConfig, samples, lines: list[str]):
+    """(the samples kept, the balancing result for the histograms, samples kept back for the
+    speed head), the steps said in ``lines``."""
+    from clonedrive.data.balance import balance_steering
+
+    balanced = balance_steering(samples.steering, np.random.default_rng([config.seed, 1]),
+                                bins=config.balance_bins)
+    if not config.balance:
+        lines.append(f"balancing off: {len(samples)} samples")
+        return samples, _unbalanced(balanced), 0
+    keep, kept_for_speed = balanced.keep, 0
+    if config.speed_head:
+        # Steering balancing thins out the straight-ahead samples, and with them the braking
+        # zones before bends: the samples the speed head learns slowing from.
+        slowing = np.flatnonzero(samples.target_speed_mph < SLOWING_LABEL_MPH)
+        keep = np.union1d(keep, slowing)
+        kept_for_speed = len(keep) - len(balanced.keep)
+        lines.append(f"speed head: {kept_for_speed} samples where the "
+                     f"expert slows below {SLOWING_LABEL_MPH:g} mph kept back")
+    lines.append(balanced.summary())
+    return samples.subset(keep), balanced, kept_for_speed
+
+
+def _open_cache(config: TrainConfig, samples, out: Path):
+    """The decoded-image cache ``config.cache`` asks for (memory, a memmap in ``out``, or
+    memory up to the limit and a memmap above it)."""
+    from clonedrive.data.batches import ImageCache
+
+    if config.cache == "memory":
+        return ImageCache(samples.unique_paths)
+    if config.cache == "memmap":
+        return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
+                          memory_limit_bytes=0)
+    return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
+                      memory_limit_bytes=config.cache_memory_limit_mb * 1024**2)
 
 
 def _unbalanced(result):

@@ -12,7 +12,9 @@ server, and the center-only real recording.
 
 Targets: 0 tracebacks, 0 files outside --out, second recorder refused, browser origin refused,
 idle sessions reaped, every row of lake_rikki_center usable, peak memory bounded (the largest
-figure is printed; an unbounded input once took 24 GB).
+figure is printed; an unbounded input once took 24 GB). Issue 37's probes follow
+(:mod:`faults_round3`: two simulators at once, a client that stops reading, same-origin and
+doubled headers, two writers, outputs over inputs, SIGTERM, planted report paths, huge images).
 """
 
 from __future__ import annotations
@@ -354,6 +356,11 @@ def main() -> None:
             print(f"center-only lake_rikki_center: {centre['usable_rows']} of {centre['rows']} "
                   f"rows usable ({centre['side_images_missing']} without side images), "
                   f"{centre['training_samples']} training samples")
+        print("issue 37 probes:")
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from faults_round3 import round3
+
+        third = round3()
     finally:
         shutil.rmtree(sandbox, ignore_errors=True)
     tracebacks = sum(result["traceback"] for result in results)
@@ -372,6 +379,7 @@ def main() -> None:
         "origin_refused": server["origin_refused"], "idle_reaped": server["idle_reaped"],
         "center_only_usable_rows": centre["usable_rows"] if centre else None,
         "center_only_rows": centre["rows"] if centre else None,
+        "round3": third,
     }))
 
 

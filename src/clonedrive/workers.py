@@ -18,11 +18,14 @@ the next one, and a network's steering, and so the whole drive, can follow a sin
 from __future__ import annotations
 
 import os
+import signal
+import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
 #: Environment set in every worker before NumPy/PyTorch load: one compute thread each.
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def default_workers() -> int:
@@ -35,8 +38,25 @@ def default_workers() -> int:
 
 def _init_worker() -> None:
     """Before anything loads: one compute thread (PyTorch reads these when it is imported, by
-    the model batches only; the expert's batches never import it)."""
+    the model batches only; the expert's batches never import it); and stop with the parent."""
     os.environ.update(_WORKER_ENV)
+    _stop_with_parent()
+
+
+def _stop_with_parent() -> None:
+    """Ask the kernel for SIGTERM when the process that started this worker dies, however it
+    dies (Linux: ``PR_SET_PDEATHSIG``), so no worker outlives a killed command and goes on
+    writing; then exit at once if it died already."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    import multiprocessing
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    parent = multiprocessing.parent_process()
+    if parent is not None and os.getppid() != parent.pid:
+        os._exit(128 + signal.SIGTERM)
 
 
 def _run_ray_task(function: Callable[[Any], Any], task: Any) -> Any:

@@ -102,3 +102,22 @@ def test_the_command(tmp_path: Path, tiny_model_path: Path, capsys) -> None:
                  "--out", str(tmp_path / "y")]) == 2
     err = capsys.readouterr().err
     assert "no driving log" in err and "odd" in err and "Traceback" not in err
+
+
+def test_nan_predictions_are_counted_not_hidden(tmp_path: Path) -> None:
+    """A network whose steering is NaN: crosscheck says how often, as evaluate does."""
+    import keras
+    from keras import layers
+
+    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.evaluate.crosscheck import format_summary
+
+    inputs = keras.Input(shape=(160, 320, 3))
+    model = keras.Model(inputs, layers.Dense(1, name="steering")(
+        layers.GlobalAveragePooling2D()(inputs)))
+    model.layers[-1].set_weights([np.zeros((3, 1), np.float32), np.array([np.nan], np.float32)])
+    report = crosscheck(NetworkPolicy(model), MOUNTAIN, tmp_path / "nan", CrosscheckConfig())
+    assert report["nan_predictions"] == report["rows"] > 0
+    assert f"{report['rows']} prediction(s) were NaN or infinite" in format_summary(report)
+    written = json.loads((tmp_path / "nan" / "crosscheck.json").read_text())
+    assert written["nan_predictions"] == report["rows"]

@@ -70,6 +70,7 @@ def run(args) -> int:
     from clonedrive.bench.leaderboard import tables
     from clonedrive.bench.run import BenchConfig, bench
     from clonedrive.bench.suite import SuiteError, load_suite
+    from clonedrive.data.output_lock import claim_output
     from clonedrive.paths import check_output_folder
 
     problem = renderer_error(args, "bench")
@@ -87,7 +88,9 @@ def run(args) -> int:
                              renderer=args.renderer, full_frame=args.full_frame)
         load_suite(config.suite)
         check_output_folder(args.out)
-        report = bench(config, args.out, progress=not args.json)
+        models = [model.split("=", 1)[-1] for model in args.models]  # LABEL=PATH
+        with claim_output("bench", args.out, inputs=models):
+            report = bench(config, args.out, progress=not args.json)
     except (SuiteError, ValueError, FileNotFoundError, RuntimeError) as error:
         print(f"clonedrive bench: {error}", file=sys.stderr)
         return 2

@@ -80,6 +80,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from clonedrive.dagger import DaggerConfig, format_table, run_dagger
+    from clonedrive.data.output_lock import claim_output
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 
@@ -102,7 +103,8 @@ def run(args) -> int:
             renderer=args.renderer, full_frame=args.full_frame)
         for name in (*config.tracks, *config.eval_tracks):
             load_track(name)
-        report = run_dagger(config, args.base, args.out, progress=not args.json)
+        with claim_output("dagger", args.out, inputs=[args.base]):
+            report = run_dagger(config, args.base, args.out, progress=not args.json)
     except (ValueError, FileNotFoundError, TrackError) as error:
         print(f"clonedrive dagger: {error}", file=sys.stderr)
         return 2

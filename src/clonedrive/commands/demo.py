@@ -43,6 +43,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from clonedrive.commands.output_claim import claim
     from clonedrive.demo import DemoConfig, run_demo
 
     try:
@@ -52,7 +53,11 @@ def run(args) -> int:
     except ValueError as error:
         print(f"clonedrive demo: {error}", file=sys.stderr)
         return 2
-    summary = run_demo(config, args.out)
+    lock = claim("demo", args.out)
+    if lock is None:
+        return 1
+    with lock:
+        summary = run_demo(config, args.out)
     stages = ", ".join(f"{name} {stage['seconds']:.0f} s"
                        for name, stage in summary["stages"].items())
     print(f"demo finished in {summary['total_seconds']:.0f} s ({stages})")

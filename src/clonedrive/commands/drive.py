@@ -61,8 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "clients cannot lock the simulator out")
     parser.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
                         help="accept WebSocket upgrades from this browser origin (repeatable; "
-                             "by default every upgrade with an Origin header is refused: the "
-                             "simulator sends none, a web page always does)")
+                             "by default an upgrade with an Origin header is refused unless it "
+                             "is the server's own, http://HOST:PORT, as Python clients send: "
+                             "the simulator sends none, a web page always does)")
     parser.add_argument("--allow-host", action="append", default=[], metavar="NAME",
                         help="also accept this name in the Host header (repeatable; by default "
                              "only the bound address, loopback names and, on 0.0.0.0, IP "

@@ -33,11 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    import numpy as np
-
-    from clonedrive.config import atomic_path
-    from clonedrive.drivers.network import has_speed_head, load_model
-    from clonedrive.udacity_spec import IMAGE_SHAPE
+    from clonedrive.commands.output_claim import claim
 
     out = Path(args.out)
     if out.suffix.lower() != ".keras":
@@ -48,6 +44,20 @@ def run(args: argparse.Namespace) -> int:
         print("clonedrive ensemble: ONNX files cannot be combined; give the .keras or .h5 files",
               file=sys.stderr)
         return 2
+    lock = claim("ensemble", out, inputs=args.models, is_file=True)
+    if lock is None:
+        return 1
+    with lock:
+        return _combine(args, out)
+
+
+def _combine(args: argparse.Namespace, out) -> int:
+    import numpy as np
+
+    from clonedrive.config import atomic_path
+    from clonedrive.drivers.network import has_speed_head, load_model
+    from clonedrive.udacity_spec import IMAGE_SHAPE
+
     try:
         members = [load_model(path, trust=args.trust_model, runtime="keras")
                    for path in args.models]

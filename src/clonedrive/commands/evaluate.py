@@ -77,6 +77,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
+    from clonedrive.commands.output_claim import claim
     from clonedrive.evaluate.config import EvalConfig
     from clonedrive.evaluate.rollout import evaluate, format_table
     from clonedrive.paths import prepare_output_folder
@@ -119,8 +120,13 @@ def run(args) -> int:
     except ValueError as error:
         print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
-    report = evaluate(policy, config, out, progress=not args.json, model_path=str(args.model),
-                      model_options={"trust": args.trust_model, "runtime": args.runtime})
+    lock = claim("evaluate", out, inputs=[args.model])
+    if lock is None:
+        return 1
+    with lock:
+        report = evaluate(policy, config, out, progress=not args.json,
+                          model_path=str(args.model),
+                          model_options={"trust": args.trust_model, "runtime": args.runtime})
     if args.json:
         print(json.dumps(report, indent=2))
     else:

@@ -48,11 +48,17 @@ def run(args: argparse.Namespace) -> int:
     if model_path.suffix.lower() == ".onnx":
         print(f"clonedrive export: {model_path} is already ONNX", file=sys.stderr)
         return 2
-    try:
-        model = load_model(model_path, trust=args.trust_model, runtime="keras")
-        from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx
+    from clonedrive.commands.output_claim import claim
 
-        export_onnx(model, out)
+    lock = claim("export", out, inputs=[model_path], is_file=True)
+    if lock is None:
+        return 1
+    try:
+        with lock:
+            model = load_model(model_path, trust=args.trust_model, runtime="keras")
+            from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx
+
+            export_onnx(model, out)
         onnx_model = OnnxModel.from_file(out)
     except (FileNotFoundError, ValueError) as error:
         print(f"clonedrive export: {error}", file=sys.stderr)

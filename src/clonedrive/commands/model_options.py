@@ -1,8 +1,10 @@
 """The model-loading options that ``drive``, ``evaluate`` and ``bench`` share, declared once.
 
 ``--trust-model`` allows Lambda layers (Python code stored in a model file: students' Keras 2
-models) with a loud warning; ``--runtime`` runs the model with Keras or ONNX Runtime. Loading
-goes through :func:`clonedrive.drivers.network.load_policy`.
+models) with a loud warning; ``--runtime`` runs the model with Keras or ONNX Runtime;
+``--allow-nan-model`` drives a model whose steering is NaN on a probe frame (refused
+otherwise: such a model would be driven straight, frame after frame, and score as if it
+drove). Loading goes through :func:`clonedrive.drivers.network.load_policy`.
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
         "--runtime", choices=RUNTIME_CHOICES, default="auto",
         help="run the model with Keras or ONNX Runtime (auto: ONNX Runtime for a .onnx file; "
              "onnx with a Keras file converts it in memory; needs the onnx extra)")
+    parser.add_argument(
+        "--allow-nan-model", action="store_true",
+        help="drive a model whose steering is NaN or infinite on a probe frame (refused by "
+             "default; each such prediction steers straight and is counted)")
 
 
 def add_steering_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,9 +53,33 @@ def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_op
     :func:`add_steering_arguments`."""
     from clonedrive.drivers.network import load_policy
 
-    return load_policy(model_path, trust=getattr(args, "trust_model", False),
-                       runtime=getattr(args, "runtime", "auto"), **steering_options(args),
-                       **policy_options)
+    policy = load_policy(model_path, trust=getattr(args, "trust_model", False),
+                         runtime=getattr(args, "runtime", "auto"), **steering_options(args),
+                         **policy_options)
+    if not getattr(args, "allow_nan_model", True):
+        check_finite_on_probe(policy, model_path)
+    return policy
+
+
+#: The probe frame's grey level: a picture with nothing in it, which any model can take.
+PROBE_GREY = 128
+
+
+def check_finite_on_probe(policy, model_path: str) -> None:
+    """``ValueError`` naming ``model_path`` if the policy's steering is NaN or infinite on a
+    uniform grey frame; the probe is not counted among the policy's NaN predictions."""
+    import numpy as np
+
+    from clonedrive.udacity_spec import IMAGE_SHAPE
+
+    frame = np.full((1, *IMAGE_SHAPE), PROBE_GREY, dtype=np.uint8)
+    counted = policy.nan_predictions
+    policy.predict(frame)
+    nonfinite = bool(policy.last_nonfinite.any())
+    policy.nan_predictions = counted
+    if nonfinite:
+        raise ValueError(f"{model_path}: the model's steering is NaN or infinite on a probe "
+                         "frame (its weights hold NaN?); --allow-nan-model drives it anyway")
 
 
 def steering_options(args: argparse.Namespace) -> dict:

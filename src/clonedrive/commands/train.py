@@ -122,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
     if missing:  # before Keras loads, which takes seconds
         print(f"clonedrive train: {missing}", file=sys.stderr)
         return 1
+    from clonedrive.data.output_lock import claim_output
     from clonedrive.model.train import TrainConfig, load_run_config, train
 
     out: Path = args.out
@@ -141,7 +142,9 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as error:  # a bad option: refused before anything is read
             print(f"clonedrive train: {error}", file=sys.stderr)
             return 2
-        result = train(config, source, out, resume=args.resume, progress=not args.json)
+        inputs = [*args.dirs, *([args.recipe] if args.recipe else [])]
+        with claim_output("train", out, inputs=inputs):
+            result = train(config, source, out, resume=args.resume, progress=not args.json)
     except (ValueError, FileNotFoundError, FileExistsError) as error:
         print(f"clonedrive train: {error}", file=sys.stderr)
         return 1

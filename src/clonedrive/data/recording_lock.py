@@ -27,6 +27,8 @@ except ImportError:  # Windows
     fcntl = None
 
 LOCK_NAME = ".clonedrive-recording.lock"
+#: Never open a lock file through a symbolic link someone planted at its name.
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 logger = logging.getLogger(__name__)
 
@@ -41,11 +43,17 @@ class RecordingLock:
     ``acquire`` raises :class:`RecordingLockedError` when a live recorder holds it. ``stale``
     is the lock a dead recorder left (its content as a dict) when this one replaced it.
     A folder the lock created is removed again on release if nothing else was written to it.
+    ``name``: the lock file's name in ``folder``; ``writer``: who holds it, and ``target``:
+    what it writes (``folder`` unless given), as the second writer's error names them (other
+    commands' outputs: :mod:`clonedrive.data.output_lock`).
     """
 
-    def __init__(self, folder: str | os.PathLike) -> None:
+    def __init__(self, folder: str | os.PathLike, *, name: str = LOCK_NAME,
+                 writer: str = "recorder", target: str | os.PathLike | None = None) -> None:
         self.folder = Path(folder)
-        self.path = self.folder / LOCK_NAME
+        self.path = self.folder / name
+        self.writer = writer
+        self.target = Path(target) if target is not None else self.folder
         self.stale: dict | None = None
         self._fd: int | None = None
         self._created_folder = False
@@ -56,14 +64,14 @@ class RecordingLock:
         self._created_folder = not self.folder.exists()
         self.folder.mkdir(parents=True, exist_ok=True)
         self._fd = self._acquire_flock() if fcntl is not None else self._acquire_exclusive()
-        record = {"pid": os.getpid(), "host": socket.gethostname(),
+        record = {"pid": os.getpid(), "host": socket.gethostname(), "writer": self.writer,
                   "started": datetime.now().isoformat(timespec="seconds")}
         os.ftruncate(self._fd, 0)
         os.write(self._fd, (json.dumps(record) + "\n").encode())
         if self.stale is not None:
-            logger.warning("%s: took over a stale lock: recorder PID %s (started %s) is no longer "
-                           "running", self.path, self.stale.get("pid", "?"),
-                           self.stale.get("started", "?"))
+            logger.warning("%s: took over a stale lock: %s PID %s (started %s) is no longer "
+                           "running", self.path, _writer_of(self.stale, self.writer),
+                           self.stale.get("pid", "?"), self.stale.get("started", "?"))
         return self
 
     def release(self) -> None:
@@ -82,7 +90,7 @@ class RecordingLock:
                 pass
 
     def __enter__(self) -> RecordingLock:
-        return self.acquire()
+        return self if self._fd is not None else self.acquire()  # held already: keep holding
 
     def __exit__(self, *exc_info: object) -> None:
         self.release()
@@ -91,7 +99,7 @@ class RecordingLock:
 
     def _acquire_flock(self) -> int:
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o644)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -117,7 +125,7 @@ class RecordingLock:
 
     def _acquire_exclusive(self) -> int:
         try:
-            return os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+            return os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
         except FileExistsError:
             pass
         try:
@@ -133,8 +141,16 @@ class RecordingLock:
         if holder.get("host") and holder.get("host") != socket.gethostname():
             who += f" on {holder['host']}"
         since = f", started {holder['started']}" if holder.get("started") else ""
-        return (f"{self.folder}: another recorder ({who}{since}) is writing into this folder; "
-                "wait for it to finish or record into another folder")
+        if self.writer == "recorder":
+            return (f"{self.folder}: another recorder ({who}{since}) is writing into this "
+                    "folder; wait for it to finish or record into another folder")
+        return (f"{self.target}: another {_writer_of(holder, self.writer)} ({who}{since}) is "
+                "writing there; wait for it to finish or choose another --out")
+
+
+def _writer_of(record: dict, default: str) -> str:
+    writer = record.get("writer")
+    return writer if isinstance(writer, str) and writer.isprintable() else default
 
 
 def _read_record(fd: int) -> dict:

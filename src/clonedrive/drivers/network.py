@@ -21,6 +21,7 @@ entry points every command uses (``trust``: ``--trust-model``; ``runtime``: ``--
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -42,7 +43,11 @@ TARGET_SPEED_SCALE_MPH = VehicleParams.top_speed_mps / MPH_TO_MPS
 
 
 class Policy(Protocol):
-    """Anything that drives from the center camera: the network, a recorded replay, a test."""
+    """Anything that drives from the center camera: the network, a recorded replay, a test.
+
+    A policy that keeps state per car (a speed controller, a filter) also has ``fork()``,
+    returning a fresh policy for another car (:meth:`NetworkPolicy.fork`); the drive server
+    calls it once per connection, and shares a policy without one between connections."""
 
     def reset(self) -> None: ...
 
@@ -198,6 +203,18 @@ class NetworkPolicy:
         self.controller.reset()
         self.controller.set_speed_mph = self.set_speed_mph
         self.steering_filter.reset()
+
+    def fork(self) -> NetworkPolicy:
+        """A policy for another car: the same model and options (shared, not copied), with its
+        own speed controller, steering filter and NaN count, all reset. The drive server gives
+        each connected simulator one, so that no car's state leaks into another's."""
+        car = copy.copy(self)
+        car.controller = SpeedController(self.set_speed_mph, kp=self.controller.kp,
+                                         ki=self.controller.ki)
+        car.steering_filter = self.new_steering_filter()
+        car.nan_predictions = 0
+        car.last_nonfinite = np.zeros(0, dtype=bool)
+        return car
 
     def new_steering_filter(self) -> SteeringFilter:
         """A :class:`SteeringFilter` with this policy's time constant and hold (one per car)."""

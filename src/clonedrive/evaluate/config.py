@@ -16,6 +16,10 @@ from clonedrive.world.vehicle import TOP_SPEED_MPH, check_set_speed
 UNSEEN_SEED_BASE = 1000
 #: The car's top speed [mph]: set speeds above it cannot be held.
 MAX_SET_SPEED_MPH = TOP_SPEED_MPH
+#: The largest count each option takes: a list of runs is built before anything drives, so
+#: ``--unseen 1000000000`` would fill the memory instead of starting.
+MAX_COUNTS = {"laps": 1000, "unseen": 10_000, "unseen_laps": 1000, "batch": 1024,
+              "workers": 1024}
 
 
 def _check_speed(name: str, value: float) -> None:
@@ -69,6 +73,10 @@ class EvalConfig:
             raise ValueError(f"unseen must be >= 0, got {self.unseen}")
         if self.unseen_laps is not None and self.unseen_laps < 1:
             raise ValueError(f"unseen_laps must be at least 1, got {self.unseen_laps}")
+        for name, most in MAX_COUNTS.items():
+            value = getattr(self, name)
+            if value is not None and value > most:
+                raise ValueError(f"{name} must be at most {most}, got {value}")
         if not self.tracks and not self.unseen:
             raise ValueError("nothing to evaluate: give at least one track (or --unseen N)")
         # The episode rules check the time limit and the cap on seconds.

@@ -127,6 +127,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
 
         iterable = progress_bar(rows, desc="reading centre images", unit="row", leave=False)
     predicted_parts = []
+    nan_before = _nan_count(policy)
     for row in iterable:
         try:
             images.append(read_rgb(row.center, shape=IMAGE_SHAPE))
@@ -142,6 +143,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
         raise ValueError(f"{log.csv_path}: {len(used)} usable centre image(s); the crosscheck "
                          "needs at least 2")
     predicted = np.concatenate(predicted_parts).astype(np.float64)
+    nan_predictions = _nan_count(policy) - nan_before
     human = np.array([row.steering for row in used], dtype=np.float64)
     times, segments = _times_and_segments(used)
     smoothed = smooth(human, config.smoothing_frames, segments)
@@ -171,6 +173,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
         "rows_in_log": log.total_rows,
         "rows_skipped_by_reader": len(log.skipped),
         "rows_unreadable_image": len(unreadable),
+        "nan_predictions": nan_predictions,
         "unreadable": unreadable[:20],
         "segments": int(segments.max()) + 1,
         "seconds": round(sum(float(np.ptp(times[segments == segment]))
@@ -182,6 +185,12 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
     plot_crosscheck(out / PLOT_NAME, times, segments, human, smoothed, predicted, report)
     write_json_atomic(out / JSON_NAME, report)
     return report
+
+
+def _nan_count(policy: Any) -> int:
+    """The NaN or infinite steering predictions ``policy`` counted so far (a
+    :class:`~clonedrive.drivers.network.NetworkPolicy` counts them, and steers 0 instead)."""
+    return int(getattr(policy, "nan_predictions", 0) or 0)
 
 
 def _write_rows(path: Path, rows: list, times, human, smoothed, predicted) -> None:
@@ -264,4 +273,5 @@ def format_summary(report: dict) -> str:
         f"  human steering mean {report['human_mean']:+.3f} std {report['human_std']:.3f} "
         f"({100 * report['human_zero_fraction']:.0f}% exactly 0); model mean "
         f"{report['predicted_mean']:+.3f} std {report['predicted_std']:.3f}",
-    ])
+    ] + ([f"  {report['nan_predictions']} prediction(s) were NaN or infinite: counted as "
+          "steering 0 in the figures above"] if report.get("nan_predictions") else []))

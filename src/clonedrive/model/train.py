@@ -438,7 +438,11 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
         f"image cache: {len(cache)} images, {len(cache) * FRAME_BYTES / 1e6:.0f} MB "
         + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
     )
-    failed = cache.fill(workers=2, progress=progress)
+    try:
+        failed = cache.fill(workers=2, progress=progress)
+    except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: no cache left behind
+        cache.close(delete=True)
+        raise
     bad_images: dict[str, int] = {}
     for error in failed.values():
         bad_images[error.reason] = bad_images.get(error.reason, 0) + 1

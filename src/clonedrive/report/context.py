@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import os
 import shutil
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -139,9 +140,52 @@ class ReportContext:
         self.left_out.append((title, text))
         return []
 
+    def run_file(self, folder: Path, name: object) -> Path | None:
+        """``folder / name`` (``folder``: the run folder or one inside it, ``name`` as a run's
+        file names it) if it is a regular file inside the run folder, reached without a link;
+        None if it is missing, and None with a note naming it (kept in :attr:`notes`) if it is
+        an absolute path, leads out with ``..``, is or passes through a symbolic link, or is
+        not a regular file: a shared run folder must not make a report carry files from
+        elsewhere."""
+        problem = _outside_problem(self.parts.run_dir, folder, name)
+        if problem is not None:
+            text = f"Refused to embed `{name}` named in `{folder}`: {problem}."
+            if text not in self.notes:
+                self.notes.append(text)
+                logger.warning("%s", text)
+            return None
+        path = folder / str(name)
+        return path if path.is_file() else None
+
     def headline(self, text: str) -> None:
         """One line for the report's "In short" list (in the order the sections run)."""
         self.facts.setdefault("headline", []).append(text)
+
+
+def _outside_problem(run_dir: Path, folder: Path, name: object) -> str | None:
+    """Why ``folder / name`` may not be embedded (see :meth:`ReportContext.run_file`), or
+    None."""
+    if not isinstance(name, str) or not name or "\0" in name:
+        return "not a file name"
+    relative_name = Path(name)
+    if relative_name.is_absolute() or name.startswith(("/", "\\")):
+        return "an absolute path"
+    if ".." in relative_name.parts or ".." in Path(name.replace("\\", "/")).parts:
+        return "it leads out of the run folder (`..`)"
+    try:
+        inside = (folder / relative_name).relative_to(run_dir)
+    except ValueError:
+        return "it is outside the run folder"
+    path = run_dir
+    for part in inside.parts:
+        path = path / part
+        try:
+            mode = path.lstat().st_mode
+        except OSError:
+            return None  # missing: not embedded, and nothing to refuse
+        if stat.S_ISLNK(mode):
+            return f"`{path}` is a symbolic link"
+    return None if stat.S_ISREG(mode) else "not a regular file"
 
 
 def read_json(path: Path) -> dict:

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.images import ImageDecodeError, decode_rgb
+from clonedrive.images import ImageDecodeError, decode_rgb, jpeg_size
 from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH, JPEG_QUALITY
 
 # Engine.IO packet types (protocol 3).
@@ -351,44 +351,6 @@ def telemetry_frame(
 
 
 # --------------------------------------------------------------------------- images
-
-# JPEG start-of-frame markers carry the image size; C4 (DHT), C8 (JPG) and CC (DAC) do not.
-_SOF_MARKERS = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
-_STANDALONE_MARKERS = frozenset(range(0xD0, 0xD8)) | {0x01}
-
-
-def jpeg_size(jpeg: bytes) -> tuple[int, int]:
-    """``(width, height)`` in pixels from a JPEG's header, without decoding it.
-
-    Lets a server refuse a huge image before allocating it. Raises :class:`ValueError`.
-    """
-    if len(jpeg) < 4 or jpeg[:2] != b"\xff\xd8":
-        raise ValueError("not a JPEG (no start-of-image marker)")
-    position = 2
-    while position + 4 <= len(jpeg):
-        if jpeg[position] != 0xFF:
-            raise ValueError(f"JPEG marker expected at byte {position}")
-        marker = jpeg[position + 1]
-        if marker == 0xFF:  # fill byte
-            position += 1
-            continue
-        if marker in _STANDALONE_MARKERS:
-            position += 2
-            continue
-        if marker in (0xD9, 0xDA):  # end of image / start of scan before any frame header
-            break
-        length = int.from_bytes(jpeg[position + 2 : position + 4], "big")
-        if length < 2:
-            raise ValueError(f"JPEG segment length {length} at byte {position}")
-        if marker in _SOF_MARKERS:
-            if position + 9 > len(jpeg):
-                break
-            height = int.from_bytes(jpeg[position + 5 : position + 7], "big")
-            width = int.from_bytes(jpeg[position + 7 : position + 9], "big")
-            return width, height
-        position += 2 + length
-    raise ValueError("JPEG has no frame header (truncated?)")
-
 
 def decode_image(
     jpeg: bytes, *, width: int = IMAGE_WIDTH, height: int = IMAGE_HEIGHT

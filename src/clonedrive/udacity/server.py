@@ -26,19 +26,24 @@ refused unread beyond its size, one over the WebSocket limit (2 MiB) makes ``web
 that connection (code 1009) while the server keeps serving, JPEG sizes are read from the header
 before decoding, and at most ``max_connections`` clients are served at once.
 
-Unlike drive.py the server binds 127.0.0.1 unless told otherwise, resets the policy on each
-new connection, and never deletes an existing image folder (frames are added to it).
+Unlike drive.py the server binds 127.0.0.1 unless told otherwise, gives each connected simulator
+its own policy state (speed controller, steering filter and hold, counters; see
+:meth:`~clonedrive.drivers.network.NetworkPolicy.fork`), so two simulators drive as each would
+alone, and never deletes an existing image folder (frames are added to it).
 
 It cannot be hijacked from a web page or starved by idle clients (:class:`DriveServerConfig`):
 
 * an upgrade that carries an ``Origin`` header (every browser sends one; the simulator sends
-  none) is refused with 403 unless the origin is listed in ``allowed_origins``;
+  none) is refused with 403 unless it is the server's own origin (``http://127.0.0.1:PORT``,
+  what websocket-client and python-socketio's client send; no page can come from there) or is
+  listed in ``allowed_origins``;
 * the ``Host`` header must name the bound address (loopback names for 127.0.0.1; any IP
   address when bound to all interfaces) or a name in ``allowed_hosts``, so a DNS-rebinding
   page cannot reach the server under its own domain name (403 otherwise);
-* a connection that sends no telemetry for ``idle_timeout_s`` is closed (answering pings does
-  not count), so idle clients cannot hold the ``max_connections`` slots and lock the simulator
-  out with 503;
+* a connection that sends no telemetry for ``idle_timeout_s``, or does not read its replies
+  for that long, is closed (answering pings does not count), so idle clients cannot hold the
+  ``max_connections`` slots and lock the simulator out with 503;
+* two ``Origin`` or two ``Host`` headers get 400;
 * saved frames stop once the image folder holds ``image_folder_max_mb`` (counted from what was
   there at start), with one warning; driving goes on.
 """
@@ -74,6 +79,10 @@ WEBSOCKET_MAX_SIZE = 2 << 20
 SOCKET_PATH = "/socket.io"
 _BAD_LOG_FIRST = 20  # bad messages logged in full per reason, then one in _BAD_LOG_EVERY
 _BAD_LOG_EVERY = 100
+#: An idle connection's close handshake gets this long [s] before the socket is dropped.
+IDLE_CLOSE_GRACE_S = 1.0
+
+
 @dataclass
 class DriveStats:
     """Counters of one server's life (read them with :meth:`DriveServer.stats`)."""
@@ -107,9 +116,15 @@ class _CloseRequested(Exception):
 
 @dataclass
 class _Connection:
-    """What one connection's handler task knows about it."""
+    """One connected simulator: its own policy (the server's, forked: its own speed controller,
+    steering filter and hold) and its own counters."""
 
+    sid: str
+    policy: Policy
     telemetry: int = 0  #: telemetry events answered with steer or manual
+    steer: int = 0  #: telemetry answered with the policy's controls
+    safe: int = 0  #: telemetry-like frames answered with the safe command
+    nan_predictions: int = 0  #: the policy's NaN count already added to the server's total
 
 
 #: The connection whose message is being handled (each handler task sets its own).
@@ -271,12 +286,15 @@ class DriveServer:
     # ------------------------------------------------------------------ connections
 
     def _check_request(self, connection: ServerConnection, request: Request) -> Response | None:
-        origin = request.headers.get("Origin")
-        if origin is not None and origin not in self.config.allowed_origins:
+        origins, hosts = (request.headers.get_all(name) for name in ("Origin", "Host"))
+        if len(origins) > 1 or len(hosts) > 1:
+            return self._refuse(connection, 400, "headers",
+                                "more than one Origin or Host header")
+        origin, host = (values[0] if values else None for values in (origins, hosts))
+        if origin is not None and not self.config.origin_allowed(origin, self.port):
             return self._refuse(connection, 403, "origin",
                                 f"browser origin {origin!r} refused: the simulator sends no "
                                 "Origin; allow one with --allow-origin")
-        host = request.headers.get("Host")
         if not self.config.host_allowed(host):
             return self._refuse(connection, 403, "host",
                                 f"Host {host!r} does not name this server; allow it with "
@@ -307,46 +325,81 @@ class DriveServer:
         return connection.respond(status, detail + "\n")
 
     async def _handle_connection(self, websocket: ServerConnection) -> None:
-        sid = uuid.uuid4().hex
-        connection = _Connection()
+        policy = _policy_for_connection(self.policy)
+        connection = _Connection(uuid.uuid4().hex, policy,
+                                 nan_predictions=_nan_count(policy))
         _CONNECTION.set(connection)  # this task's own: the message handlers count into it
         self._stats.connections += 1
         self._stats.active_connections += 1
-        logger.info("client connected from %s (sid %s)", websocket.remote_address, sid)
-        loop = asyncio.get_running_loop()
+        logger.info("client connected from %s (sid %s)", websocket.remote_address,
+                    connection.sid)
         try:
-            await loop.run_in_executor(self._executor, self.policy.reset)
-            await websocket.send(protocol.open_frame(sid))
-            await websocket.send(protocol.CONNECT_FRAME)
-            idle_s = self.config.idle_timeout_s
-            deadline = loop.time() + idle_s  # pushed back by each telemetry answered
-            while True:
-                try:
-                    async with asyncio.timeout_at(deadline):
-                        message = await websocket.recv()
-                except TimeoutError:
-                    self._stats.idle_closed += 1
-                    logger.warning("closing connection %s: no telemetry for %g s", sid, idle_s)
-                    await websocket.close(IDLE_CLOSE_CODE, f"no telemetry for {idle_s:g} s")
-                    break
-                answered = connection.telemetry
-                try:
-                    reply = await self._on_message(message)
-                except _CloseRequested:
-                    break
-                if connection.telemetry > answered:
-                    deadline = loop.time() + idle_s
-                if reply is not None:
-                    await websocket.send(reply)
+            await asyncio.get_running_loop().run_in_executor(self._executor, policy.reset)
+            await self._serve_connection(websocket, connection)
         except ConnectionClosed as error:
             if error.sent is not None and error.sent.code == 1009:
                 detail = f"message over {WEBSOCKET_MAX_SIZE} bytes; connection closed"
                 self._bad("oversized", detail)
             else:
-                logger.info("connection %s closed: %s", sid, error)
+                logger.info("connection %s closed: %s", connection.sid, error)
         finally:
             self._stats.active_connections -= 1
-            logger.info("client %s disconnected", sid)
+            logger.info("client %s disconnected: %d steer, %d safe replies", connection.sid,
+                        connection.steer, connection.safe)
+
+    async def _serve_connection(self, websocket: ServerConnection,
+                                connection: _Connection) -> None:
+        """Answer one connection's messages until it closes, asks to close, or goes idle: no
+        telemetry for ``idle_timeout_s``, counting both waiting for a message and waiting to
+        send a reply (a client that stops reading fills its send buffer)."""
+        loop = asyncio.get_running_loop()
+        idle_s = self.config.idle_timeout_s
+        deadline = loop.time() + idle_s  # pushed back by each telemetry answered
+        for frame in (protocol.open_frame(connection.sid), protocol.CONNECT_FRAME):
+            if not await self._send_by(websocket, frame, deadline, connection):
+                return
+        while True:
+            try:
+                async with asyncio.timeout_at(deadline):
+                    message = await websocket.recv()
+            except TimeoutError:
+                await self._close_idle(websocket, connection, f"no telemetry for {idle_s:g} s")
+                return
+            answered = connection.telemetry
+            try:
+                reply = await self._on_message(message)
+            except _CloseRequested:
+                return
+            if connection.telemetry > answered:
+                deadline = loop.time() + idle_s
+            if reply is not None and not await self._send_by(websocket, reply, deadline,
+                                                             connection):
+                return
+
+    async def _send_by(self, websocket: ServerConnection, frame: str, deadline: float,
+                       connection: _Connection) -> bool:
+        """Send ``frame``; False (the connection closed as idle) if it is not sent by
+        ``deadline`` (loop time)."""
+        try:
+            async with asyncio.timeout_at(deadline):
+                await websocket.send(frame)
+        except TimeoutError:
+            reason = f"no telemetry for {self.config.idle_timeout_s:g} s (it stopped reading)"
+            await self._close_idle(websocket, connection, reason)
+            return False
+        return True
+
+    async def _close_idle(self, websocket: ServerConnection, connection: _Connection,
+                          reason: str) -> None:
+        """Close an idle connection: the close handshake if the client answers it within
+        :data:`IDLE_CLOSE_GRACE_S`, else the socket is dropped."""
+        self._stats.idle_closed += 1
+        logger.warning("closing connection %s: %s", connection.sid, reason)
+        try:
+            async with asyncio.timeout(IDLE_CLOSE_GRACE_S):
+                await websocket.close(IDLE_CLOSE_CODE, reason[:100])
+        except TimeoutError:
+            websocket.transport.abort()
 
     # ------------------------------------------------------------------ messages
 
@@ -412,9 +465,10 @@ class DriveServer:
         except protocol.TelemetryError as error:
             return self._safe(error.reason, error.detail)
         loop = asyncio.get_running_loop()
+        connection = _CONNECTION.get()
         try:
             steering, throttle, save_error = await loop.run_in_executor(
-                self._executor, self._drive, telemetry
+                self._executor, self._drive, connection.policy, telemetry
             )
             reply = protocol.steer_frame(steering, throttle, telemetry.decimal_separator)
         except protocol.TelemetryError as error:
@@ -424,21 +478,23 @@ class DriveServer:
             return self._safe("policy_error", f"{type(error).__name__}: {error}")
         if save_error is not None:
             self._bad("save_error", save_error)
-        self._count_nan_predictions()
+        self._count_nan_predictions(connection)
         stats = self._stats
         stats.steer += 1
-        _CONNECTION.get().telemetry += 1
+        connection.steer += 1
+        connection.telemetry += 1
         stats.last_steering, stats.last_throttle = steering, throttle
         stats.last_speed_mph = telemetry.speed_mph
         return reply
 
-    def _drive(self, telemetry: protocol.Telemetry) -> tuple[float, float, str | None]:
+    def _drive(self, policy: Policy, telemetry: protocol.Telemetry
+               ) -> tuple[float, float, str | None]:
         """Runs on the policy thread: decode, act, save the frame.
 
         Returns the controls and, if the frame could not be saved, why.
         """
         image_rgb = protocol.decode_image(telemetry.image_jpeg)
-        steering, throttle = self.policy.act(image_rgb, telemetry.speed_mph)
+        steering, throttle = policy.act(image_rgb, telemetry.speed_mph)
         save_error = None
         if self.image_folder is not None:
             save_error = self._save_frame(telemetry.image_jpeg)
@@ -471,12 +527,15 @@ class DriveServer:
 
     # ------------------------------------------------------------------ bookkeeping
 
-    def _count_nan_predictions(self) -> None:
-        """Take the policy's count of NaN predictions (a NetworkPolicy keeps one); log them."""
-        count = int(getattr(self.policy, "nan_predictions", 0) or 0)
-        if count <= self._stats.nan_predictions:
+    def _count_nan_predictions(self, connection: _Connection) -> None:
+        """Add the connection's new NaN predictions (a NetworkPolicy counts them) to the
+        server's total; log them."""
+        count = _nan_count(connection.policy)
+        if count <= connection.nan_predictions:
             return
-        self._stats.nan_predictions = count
+        self._stats.nan_predictions += count - connection.nan_predictions
+        connection.nan_predictions = count
+        count = self._stats.nan_predictions
         if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
             logger.warning("the model predicted NaN steering (%d frame(s) so far); "
                            "sent straight steering instead", count)
@@ -490,6 +549,9 @@ class DriveServer:
     def _safe(self, reason: str, detail: str) -> str:
         self._bad(reason, detail + " -> safe command")
         self._stats.safe += 1
+        connection = _CONNECTION.get(None)
+        if connection is not None:
+            connection.safe += 1
         return protocol.SAFE_STEER_FRAME
 
     def _ignore(self, reason: str, detail: str) -> None:
@@ -517,6 +579,18 @@ def prepare_image_folder(folder: Path) -> int:
             if entry.is_file(follow_symlinks=False):
                 total += entry.stat(follow_symlinks=False).st_size
     return total
+
+
+def _policy_for_connection(policy: Policy) -> Policy:
+    """The policy one connection drives with: its own fork where the policy keeps state per
+    car (:meth:`~clonedrive.drivers.network.NetworkPolicy.fork`), else the shared one."""
+    fork = getattr(policy, "fork", None)
+    return fork() if callable(fork) else policy
+
+
+def _nan_count(policy: Policy) -> int:
+    """The NaN predictions ``policy`` has counted over its life (0 if it counts none)."""
+    return int(getattr(policy, "nan_predictions", 0) or 0)
 
 
 def _bound_port(server: Server, requested: int) -> int:

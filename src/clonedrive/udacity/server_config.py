@@ -9,6 +9,7 @@ from __future__ import annotations
 import ipaddress
 import math
 from dataclasses import dataclass
+from urllib.parse import urlsplit
 
 from clonedrive.udacity_spec import PORT
 
@@ -76,6 +77,24 @@ class DriveServerConfig:
     def loopback_only(self) -> bool:
         """True when only this machine can connect."""
         return self.host == "localhost" or ipaddress.ip_address(self.host).is_loopback
+
+    def origin_allowed(self, origin: str, port: int) -> bool:
+        """Whether an upgrade's ``Origin`` header is accepted: listed in ``allowed_origins``, or
+        this server's own origin, ``http(s)://NAME:PORT`` with the bound ``port`` and a NAME
+        that :meth:`host_allowed` accepts (what websocket-client sends by default; no web page
+        has it, since this server serves none)."""
+        if origin in self.allowed_origins:
+            return True
+        try:
+            url = urlsplit(origin)
+            origin_port = url.port
+        except ValueError:
+            return False
+        if url.scheme not in ("http", "https") or url.hostname is None or origin_port != port:
+            return False
+        if url.path or url.query or url.fragment or url.username is not None:
+            return False
+        return self.host_allowed(url.netloc)
 
     def host_allowed(self, header: str | None) -> bool:
         """Whether a request's ``Host`` header names this server (None: no header, allowed:

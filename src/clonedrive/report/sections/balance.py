@@ -19,8 +19,8 @@ def build(ctx: ReportContext) -> list[Section]:
     dataset = ctx.dataset
     figures = []
     for stage in ("before", "after"):
-        source = train / f"steering_{stage}.png"
-        if source.is_file():
+        source = ctx.run_file(train, f"steering_{stage}.png")
+        if source is not None:
             figures.append(copy_figure(source, ctx.figures_dir, source.name))
         elif dataset and "balance" in dataset:
             from clonedrive.data.balance import plot_histogram

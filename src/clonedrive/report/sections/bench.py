@@ -73,8 +73,8 @@ def _subsection(ctx: ReportContext, path: Path) -> Section:
         blocks.append(Table(tuple(model_head), tuple(tuple(row) for row in model_rows),
                             align="ll" + "r" * (len(model_head) - 2)))
     for plot, caption in PLOTS:
-        source = path.parent / plot
-        if source.is_file():
+        source = ctx.run_file(path.parent, plot)
+        if source is not None:
             target = copy_figure(source, ctx.figures_dir,
                                  f"{safe_stem(name.replace('/', '_'))}_{plot}")
             blocks.append(Figure(target, caption))

@@ -67,8 +67,8 @@ def build(ctx: ReportContext) -> list[Section]:
         + (", at every iteration's label count." if report.get("plain_each") else "."))
     blocks: list = [Paragraph(text), Table(tuple(headers), tuple(rows),
                                            align="l" + "r" * (len(headers) - 1))]
-    png = path.parent / "dagger.png"
-    if png.is_file():
+    png = ctx.run_file(path.parent, "dagger.png")
+    if png is not None:
         blocks.append(Figure(copy_figure(png, ctx.figures_dir, "dagger.png"),
                              "Per iteration: evaluation figures per split, takeovers per km."))
     last = rows_in[-1].get("eval", {}).get("overall", {})

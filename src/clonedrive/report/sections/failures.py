@@ -36,7 +36,8 @@ def failure_analysis(ctx: ReportContext, runs: list[dict], eval_dir: Path) -> li
                      str(int(event.get("lap", 0)) + 1), fmt.num(event.get("time_s"), 1),
                      fmt.num(event.get("s_m"), 0), fmt.signed(cte), f"{side} edge", where["text"]))
         frame = event.get("frame_png")
-        image = read_image_or_none(eval_dir / frame) if frame else None
+        source = ctx.run_file(eval_dir, frame) if frame else None
+        image = read_image_or_none(source) if source is not None else None
         if image is not None:
             lap = int(event.get("lap", 0)) + 1
             panels.append(Panel(image, f"#{number} {fmt.run_label(run)}, lap {lap}\n"

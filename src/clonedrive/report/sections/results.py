@@ -90,10 +90,9 @@ def _maps(ctx: ReportContext, runs: list[dict], eval_dir: Path) -> list:
     builtin: list[Figure] = []
     unseen: list[Figure] = []
     for run in runs:
-        source = run.get("map_png")
-        if source and (eval_dir / source).is_file():
-            path = copy_figure(eval_dir / source, ctx.figures_dir,
-                               figure_name(Path(source).stem, "map"))
+        source = ctx.run_file(eval_dir, run["map_png"]) if run.get("map_png") else None
+        if source is not None:
+            path = copy_figure(source, ctx.figures_dir, figure_name(source.stem, "map"))
             caption = (f"{fmt.run_label(run)}: the driven path coloured by |CTE| (the scale "
                        "tops out just above the run's largest); red crosses mark off-road "
                        "events, blue arrows the driving direction.")
@@ -119,8 +118,8 @@ def _stills(ctx: ReportContext, runs: list[dict], eval_dir: Path) -> list:
         return [ctx.note("No videos in this evaluation (run `clonedrive evaluate "
                          "--video`): no stills.")]
     for run in videos:
-        video = eval_dir / run["video"]
-        stills = read_stills(video, ctx.config.stills_per_video) if video.is_file() else []
+        video = ctx.run_file(eval_dir, run["video"])
+        stills = read_stills(video, ctx.config.stills_per_video) if video is not None else []
         if not stills:
             blocks.append(ctx.note(f"`{run['video']}` is missing or unreadable: no stills "
                                    f"for {fmt.run_label(run)}."))

@@ -134,7 +134,8 @@ def _frames(ctx: ReportContext) -> list[tuple[str, object]]:
         for run in ctx.eval.get("runs") or []:
             for event in run.get("off_road_events") or []:
                 frame = event.get("frame_png")
-                image = read_image_or_none(eval_dir / frame) if frame else None
+                source = ctx.run_file(eval_dir, frame) if frame else None
+                image = read_image_or_none(source) if source is not None else None
                 if image is not None and len(frames) < MAX_EVENT_FRAMES:
                     frames.append((f"off road: {run.get('track')} s {event.get('s_m', 0):.0f} m",
                                    image))

@@ -78,8 +78,8 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(headers, table_rows, align="l" + "r" * len(columns) + "l"))
     else:
         section.blocks.append(ctx.note(f"No `history.csv` in `{train}`: no loss table."))
-    loss_png = train / "loss.png"
-    if loss_png.is_file():
+    loss_png = ctx.run_file(train, "loss.png")
+    if loss_png is not None:
         figure_path = copy_figure(loss_png, ctx.figures_dir, "loss.png")
     elif history:
         from clonedrive.model.train import plot_loss

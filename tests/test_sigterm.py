@@ -1,0 +1,114 @@
+"""SIGTERM is handled as Ctrl-C is, by real `clonedrive` processes: the command stops with
+status 143 and one line, its worker processes stop with it, and a killed worker's parent
+leaves no worker behind."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+WAIT_S = 180.0  # the longest a test waits for a process to get somewhere (not a timing)
+
+
+def spawned_workers(parent: int) -> set[int]:
+    """The multiprocessing workers (spawned interpreters) whose parent is ``parent``."""
+    workers = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            status = (entry / "status").read_text()
+            command = (entry / "cmdline").read_bytes()
+        except OSError:  # gone meanwhile
+            continue
+        ppid = next(line.split()[1] for line in status.splitlines()
+                    if line.startswith("PPid:"))
+        if int(ppid) == parent and b"spawn_main" in command:
+            workers.add(int(entry.name))
+    return workers
+
+
+def wait_for(condition) -> bool:
+    end = time.monotonic() + WAIT_S
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = (Path("/proc") / str(pid) / "status").read_text()
+    except OSError:
+        return False
+    return "State:\tZ" not in state  # a zombie has stopped
+
+
+def test_sigterm_stops_evaluate_and_its_workers(tmp_path: Path, tiny_model_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    command = [sys.executable, "-m", "clonedrive.cli", "evaluate", str(tiny_model_path),
+               "--track", "lake", "--unseen", "4", "--laps", "20", "--unseen-laps", "20",
+               "--workers", "2", "--batch", "1", "--no-scenery", "--out", str(tmp_path / "eval")]
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: spawned_workers(process.pid) or process.poll() is not None)
+        workers = spawned_workers(process.pid)
+        assert workers, "evaluate started no worker"
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines()[-1] == "terminated"
+    assert "Traceback" not in err
+    assert wait_for(lambda: not any(alive(pid) for pid in workers))
+    assert not (tmp_path / "eval" / "eval.json").exists()
+
+
+def test_workers_stop_when_their_parent_is_killed(tmp_path: Path) -> None:
+    """SIGKILL cannot be handled: the kernel's parent-death signal stops the workers."""
+    script = (
+        "import time\n"
+        "from clonedrive.workers import run_tasks\n"
+        "run_tasks(time.sleep, [600, 600], workers=2)\n"
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    process = subprocess.Popen([sys.executable, "-c", script], env=env)
+    try:
+        assert wait_for(lambda: len(spawned_workers(process.pid)) == 2)
+        workers = spawned_workers(process.pid)
+    finally:
+        process.kill()
+        process.wait()
+    assert wait_for(lambda: not any(alive(pid) for pid in workers))
+
+
+def test_a_terminated_train_removes_its_image_cache(tmp_path: Path) -> None:
+    recording = Path(__file__).resolve().parent / "fixtures" / "udacity" / "stationary"
+    out = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    command = [sys.executable, "-m", "clonedrive.cli", "train", str(recording), "--out",
+               str(out), "--cache", "memmap", "--model", "fast", "--epochs", "100000",
+               "--val-fraction", "0.3", "--json"]
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    cache = out / "image_cache.u8"
+    try:
+        assert wait_for(lambda: cache.exists() or process.poll() is not None)
+        assert cache.exists(), process.communicate()[1]
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + signal.SIGTERM, err
+    assert not cache.exists()

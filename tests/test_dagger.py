@@ -167,3 +167,22 @@ def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) ->
     samples = expand(recipe)
     assert len(samples.steering) == 10  # the center camera and its mirror image
     assert DaggerConfig(human=[out]).human == (str(out),)
+
+
+def test_collection_records_whole_frames_whatever_the_network_crops(tmp_path: Path) -> None:
+    """Collected frames are training data: they are rendered whole even for a policy that
+    looks at a strip (a recipe may crop differently, and augmentation shifts rows)."""
+    from clonedrive.dagger import collect
+    from clonedrive.drivers.tiny_model import build_road_follower
+
+    policy = NetworkPolicy(build_road_follower(), set_speed_mph=15.0)
+    assert policy.visible_rows is not None  # it looks at a strip only
+    config = DaggerConfig(tracks=("lake",), speed_mph=15.0, max_seconds=1.0, scenery=False)
+    collect(policy, config, beta=0.0, out=tmp_path, seed=0)
+    rows = read_driving_log(tmp_path / "lake").rows
+    assert rows
+    from clonedrive.images import read_rgb
+
+    for camera in ("center", "left", "right"):
+        frame = read_rgb(getattr(rows[-1], camera))
+        assert frame[:40].std() > 5 and frame[150:].std() > 1  # sky and bonnet drawn

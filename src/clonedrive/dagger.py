@@ -101,7 +101,9 @@ class DaggerConfig:
     #: recordings of a person's takeovers (``clonedrive web``), aggregated from iteration 1
     human: tuple[str, ...] = ()
     renderer: str = DEFAULT_RENDERER  #: who draws frames (sim/engine.py), collecting and after
-    full_frame: bool = False  #: render whole frames, not only the rows the network's crop keeps
+    #: evaluate on whole frames, not only the rows the network's crop keeps (collection always
+    #: renders whole frames: they are recorded)
+    full_frame: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "human", tuple(str(folder) for folder in self.human))
@@ -243,10 +245,12 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     rules = EpisodeRules(laps=config.laps, set_speed_mph=config.speed_mph,
                          max_seconds=config.max_seconds)
     folders = [out / safe_stem(name) for name in config.tracks]
-    sims, sinks, rows = [], [], None if config.full_frame else getattr(policy, "visible_rows", None)
+    # Whole frames: what collection sees is recorded as training data (a recipe may crop
+    # differently, and augmentation shifts rows into the network's view).
+    sims, sinks = [], []
     try:
         for track, folder in zip(tracks, folders, strict=True):
-            sims.append(Simulator(track, SimConfig(scenery=config.scenery, render_rows=rows,
+            sims.append(Simulator(track, SimConfig(scenery=config.scenery,
                                                    renderer=config.renderer)))
             _, start = prepare_log_folder(folder, START_TIME)
             sinks.append(RowSink(folder, start, relative_paths=True))
@@ -293,7 +297,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
         "off_road_events": off_road, "off_road_per_km": round(off_road / km, 3) if km else None,
         "expert_share": round((steps["expert"] + steps["takeover"]) / max(1, sum(steps.values())),
                               4),
-        "tracks": per_track, "render_rows": None if rows is None else list(rows),
+        "tracks": per_track,
     }
     write_json_atomic(out / "collect.json", result)
     return result

@@ -74,7 +74,7 @@ def test_sigterm_stops_evaluate_and_its_workers(tmp_path: Path, tiny_model_path:
 
 
 def test_workers_stop_when_their_parent_is_killed(tmp_path: Path) -> None:
-    """SIGKILL cannot be handled: the kernel's parent-death signal stops the workers."""
+    """SIGKILL cannot be handled: each worker notices its parent is gone and stops."""
     script = (
         "import time\n"
         "from clonedrive.workers import run_tasks\n"

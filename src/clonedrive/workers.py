@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
 #: Environment set in every worker before NumPy/PyTorch load: one compute thread each.
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+#: How often a worker checks that its parent process is still there [s].
+_PARENT_CHECK_S = 0.5
 
 
 def default_workers() -> int:
@@ -36,31 +36,36 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _init_worker() -> None:
+def _init_worker(parent: int) -> None:
     """Before anything loads: one compute thread (PyTorch reads these when it is imported, by
-    the model batches only; the expert's batches never import it); and stop with the parent."""
+    the model batches only; the expert's batches never import it); and stop with ``parent``,
+    the process that runs the pool."""
     os.environ.update(_WORKER_ENV)
-    _stop_with_parent()
+    _stop_with_parent(parent)
 
 
-def _stop_with_parent() -> None:
-    """Ask the kernel for SIGTERM when the process that started this worker dies, however it
-    dies (Linux: ``PR_SET_PDEATHSIG``), so no worker outlives a killed command and goes on
-    writing; then exit at once if it died already."""
-    if not sys.platform.startswith("linux"):
-        return
-    import ctypes
-    import multiprocessing
+def _stop_with_parent(parent: int) -> None:
+    """Exit when the process that started this worker is gone, however it died (SIGKILL
+    included), so no worker outlives a killed command and goes on writing: a daemon thread
+    watches the parent's PID every :data:`_PARENT_CHECK_S` seconds. (The kernel's
+    ``PR_SET_PDEATHSIG`` would fire when the *thread* that forked the worker ends, and the pool
+    forks its replacement workers from a thread that ends at the pool's shutdown.)"""
+    import threading
+    import time
 
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    parent = multiprocessing.parent_process()
-    if parent is not None and os.getppid() != parent.pid:
+    if os.getppid() != parent:  # it died while this worker started
         os._exit(128 + signal.SIGTERM)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(_PARENT_CHECK_S)
+        os._exit(128 + signal.SIGTERM)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def _run_ray_task(function: Callable[[Any], Any], task: Any) -> Any:
-    _init_worker()
+    os.environ.update(_WORKER_ENV)  # Ray stops its own workers
     return function(task)
 
 
@@ -82,7 +87,7 @@ def run_tasks(function: Callable[[Any], Any], tasks: Sequence[Any], *,
     context = multiprocessing.get_context("spawn")  # no forked Panda3D or PyTorch state
     results = []
     with context.Pool(processes=min(workers, len(tasks)), initializer=_init_worker,
-                      maxtasksperchild=1) as pool:
+                      initargs=(os.getpid(),), maxtasksperchild=1) as pool:
         for index, result in enumerate(pool.imap(function, tasks)):
             results.append(result)
             if on_done is not None:

@@ -141,7 +141,14 @@ def test_a_jump_in_the_timestamps_starts_a_new_episode() -> None:
     assert [len(episode.rows) for episode in replayable_episodes(LAKE, config)] == [40, 18]
 
 
-def test_logs_that_cannot_be_replayed_are_refused() -> None:
+def test_logs_that_cannot_be_replayed_are_refused(tmp_path: Path) -> None:
+    speedless = tmp_path / "speedless"
+    shutil.copytree(MOUNTAIN, speedless)
+    csv = speedless / "driving_log.csv"
+    lines = csv.read_text().splitlines()
+    csv.write_text("".join(line.rsplit(",", 1)[0] + ", 0\n" for line in lines))
+    with pytest.raises(ReplayError, match="no speed"):
+        replayable_episodes(speedless, ReplayConfig())
     with pytest.raises(ReplayError, match="stationary"):
         replayable_episodes(STATIONARY, ReplayConfig())
     with pytest.raises(ReplayError, match="too short"):

@@ -15,8 +15,8 @@ Run: python benchmarks/replay.py [--rows 200] [--model best=runs/demo/train/mode
 Ends with one JSON line: {"side_view_error_ratio", "side_view_error_synthesised",
 "side_view_error_unshifted", "side_view_error_ratio_unsmoothed",
 "side_view_error_ratio_default_rig", "rows_compared", "rows_better", "fitted_left_x_m",
-"fitted_right_x_m", "replay": {label: {log: {autonomy_pct, interventions, interventions_per_km,
-distance_m, mean_abs_offset_m, jitter_per_s}}}}.
+"fitted_right_x_m", "fitted_horizon_row", "replay": {label: {log: {autonomy_pct,
+interventions, interventions_per_km, distance_m, mean_abs_offset_m, jitter_per_s}}}}.
 """
 
 from __future__ import annotations
@@ -83,6 +83,7 @@ def side_view_figures(log: Path, count: int) -> dict:
         "rows_better": int((main[..., 0] < main[..., 1]).all(axis=1).sum()),
         "fitted_left_x_m": fitted.left_x_m,
         "fitted_right_x_m": fitted.right_x_m,
+        "fitted_horizon_row": fitted.horizon_row,
     }
 
 
@@ -138,7 +139,8 @@ def main() -> None:
           f"{result['side_view_error_ratio_unsmoothed']:.3f}, default rig "
           f"{result['side_view_error_ratio_default_rig']:.3f}); better on "
           f"{result['rows_better']} of {result['rows_compared']} rows; fitted side cameras "
-          f"{result['fitted_left_x_m']:+.2f} / {result['fitted_right_x_m']:+.2f} m "
+          f"{result['fitted_left_x_m']:+.2f} / {result['fitted_right_x_m']:+.2f} m, horizon "
+          f"row {result['fitted_horizon_row']} "
           f"({time.perf_counter() - started:.0f} s)")
     logs = args.replay_log or list(REPLAY_LOGS)
     result["replay"] = replay_figures(args.model, logs, args.trust_model) if args.model else {}

@@ -84,9 +84,11 @@ def test_synthesised_side_views_are_closer_to_the_real_ones(lake_frames) -> None
 
 
 def test_calibration_finds_the_side_cameras(lake_frames) -> None:
-    fitted = calibrate(replace(Rig(), left_x_m=-0.5, right_x_m=0.5), lake_frames[:4])
+    start = replace(Rig(), left_x_m=-0.5, right_x_m=0.5, horizon_row=61.5)
+    fitted = calibrate(start, lake_frames[:4])
     assert -0.9 <= fitted.left_x_m <= -0.65
     assert 0.65 <= fitted.right_x_m <= 0.9
+    assert 58.5 <= fitted.horizon_row <= 60.5
 
 
 def test_side_images_fill_the_edges(lake_frames) -> None:

@@ -21,10 +21,10 @@ DESCRIPTION = (
     "path the human drove, moved each frame by the difference between the model's steering and "
     "the human's (a kinematic bicycle at the recorded speed), and the model sees the recorded "
     "frame re-rendered for that offset and heading (flat road below the horizon, infinitely far "
-    "above; the side cameras fill the edges where the log has them, and their offsets are "
-    "fitted from its images). Past --max-offset an intervention puts the car back on the path. "
-    "Reports autonomy = (1 - interventions x 6 s / elapsed) x 100, interventions per km, the "
-    "mean |offset| and the steering jitter. A log splits into episodes where its image "
+    "above; the side cameras fill the edges where the log has them, and their offsets and the "
+    "horizon are fitted from its images). Past --max-offset an intervention puts the car back "
+    "on the path. Reports autonomy = (1 - interventions x 6 s / elapsed) x 100, interventions "
+    "per km, the mean |offset| and the steering jitter. A log splits into episodes where its image "
     "timestamps jump; a stationary, speedless or too short log is refused. Writes replay.json "
     "and replay.png (offset over distance), and with --video replay.mp4, into --out."
 )
@@ -49,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="an intervention when the car is further than M metres from the "
                              "recorded path")
     parser.add_argument("--no-calibrate", action="store_true",
-                        help="use the default side-camera offsets instead of fitting them")
+                        help="use the default side-camera offsets and horizon instead of fitting "
+                             "them to a three-camera log")
     parser.add_argument("--video", action="store_true",
                         help="also write replay.mp4: the frames the model saw, with a HUD")
     parser.add_argument("--json", action="store_true", help="print replay.json's content")

@@ -26,6 +26,8 @@ ROAD_MARGIN_ROWS = 8
 #: Side-camera offsets tried when calibrating [m]: a coarse grid, then a fine one around its best.
 COARSE_OFFSETS_M = tuple(round(0.4 + 0.05 * step, 2) for step in range(15))
 FINE_STEP_M = 0.01
+#: The horizon is searched this many rows either side of the rig's, a row at a time.
+HORIZON_SEARCH_ROWS = 3
 #: Frames of a log the calibration looks at (evenly spaced).
 CALIBRATION_FRAMES = 8
 #: Gaussian smoothing [px, odd] of both images before a view is compared: the road's markings
@@ -172,7 +174,7 @@ def side_view_errors(rig: Rig, frames: list[Mapping[str, np.ndarray]], camera: s
     return float(np.mean(synthesised)), float(np.mean(unshifted))
 
 
-def calibrate(rig: Rig, frames: list[Mapping[str, np.ndarray]]) -> Rig:
+def fit_side_offsets(rig: Rig, frames: list[Mapping[str, np.ndarray]]) -> Rig:
     """``rig`` with the side-camera offsets that best map the centre images onto the side ones
     (a coarse grid, then a fine one around its best)."""
     fitted = {}
@@ -184,3 +186,21 @@ def calibrate(rig: Rig, frames: list[Mapping[str, np.ndarray]]) -> Rig:
         fine = [best + FINE_STEP_M * step for step in range(-4, 5)]
         fitted[camera] = sign * round(min(fine, key=error), 3)
     return replace(rig, left_x_m=fitted["left"], right_x_m=fitted["right"])
+
+
+def fit_horizon(rig: Rig, frames: list[Mapping[str, np.ndarray]]) -> Rig:
+    """``rig`` with the horizon row, within :data:`HORIZON_SEARCH_ROWS` of its own, that best
+    maps the centre images onto both side ones at the rig's side offsets."""
+    def error(row: float) -> float:
+        candidate = replace(rig, horizon_row=row)
+        return sum(side_view_errors(candidate, frames, camera)[0] for camera in ("left", "right"))
+
+    rows = [rig.horizon_row + step for step in range(-HORIZON_SEARCH_ROWS,
+                                                      HORIZON_SEARCH_ROWS + 1)]
+    return replace(rig, horizon_row=min(rows, key=error))
+
+
+def calibrate(rig: Rig, frames: list[Mapping[str, np.ndarray]]) -> Rig:
+    """``rig`` fitted to three-camera frames: the side offsets, then the horizon at those
+    offsets, then the side offsets again at that horizon."""
+    return fit_side_offsets(fit_horizon(fit_side_offsets(rig, frames), frames), frames)

@@ -160,9 +160,11 @@ def test_logs_that_cannot_be_replayed_are_refused(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_the_command(tmp_path: Path, tiny_model_path: Path, capsys) -> None:
     out = tmp_path / "replay"
-    assert main(["replay", str(tiny_model_path), str(MOUNTAIN), "--out", str(out)]) == 0
+    assert main(["replay", str(tiny_model_path), str(MOUNTAIN), "--out", str(out),
+                 "--video"]) == 0
     report = json.loads((out / "replay.json").read_text())
     assert report["totals"]["frames"] == 70 and (out / "replay.png").stat().st_size > 1000
+    assert report["files"]["video"] == "replay.mp4" and (out / "replay.mp4").stat().st_size > 0
     assert "autonomy" in capsys.readouterr().out
     assert main(["replay", str(tiny_model_path), str(STATIONARY), "--out", str(out)]) == 1
     error = capsys.readouterr().err.strip()

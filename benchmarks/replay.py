@@ -9,14 +9,23 @@
 2. With ``--model LABEL=PATH`` (repeatable): ``clonedrive replay``'s autonomy, interventions per
    km, mean |offset| and jitter of each model on each replay log (default: the real lake and
    mountain logs), beside the always-0 baseline (``always_zero``).
+3. With ``--sim-model LABEL=PATH`` (repeatable): ``sim_rank_correlation``, the Spearman rank
+   correlation between replay and true closed-loop interventions per km in clonedrive, over
+   every model and ``--sim-condition TRACK@MPH`` (a lap recorded with all three cameras, then
+   replayed; the same track and speed driven by ``clonedrive evaluate``); the same for the
+   replay's mean |offset| against the true mean |cross-track error|
+   (``sim_rank_correlation_offset``), and the mean |difference| in interventions per km.
 
 Run: python benchmarks/replay.py [--rows 200] [--model best=runs/demo/train/model.keras]
-     [--replay-log DIR ...] [--trust-model]
+     [--replay-log DIR ...] [--sim-model LABEL=PATH ... --sim-condition lake@15 ...]
+     [--trust-model]
 Ends with one JSON line: {"side_view_error_ratio", "side_view_error_synthesised",
 "side_view_error_unshifted", "side_view_error_ratio_unsmoothed",
 "side_view_error_ratio_default_rig", "rows_compared", "rows_better", "fitted_left_x_m",
 "fitted_right_x_m", "fitted_horizon_row", "replay": {label: {log: {autonomy_pct,
-interventions, interventions_per_km, distance_m, mean_abs_offset_m, jitter_per_s}}}}.
+interventions, interventions_per_km, distance_m, mean_abs_offset_m, jitter_per_s}}},
+and with --sim-model "sim_rank_correlation", "sim_rank_correlation_offset",
+"sim_interventions_per_km_mean_abs_difference", "sim_pairs"}.
 """
 
 from __future__ import annotations
@@ -120,6 +129,61 @@ def replay_figures(models: list[str], logs: list[Path], trust: bool) -> dict:
     return results
 
 
+def sim_comparison(models: list[str], conditions: list[str], trust: bool) -> dict:
+    """Each model replayed on a clonedrive-recorded lap (three cameras) and driven in true closed
+    loop on the same track at the same speed: rank correlations between the two over all
+    (model, condition) pairs, and the mean |difference| of interventions per km."""
+    from scipy.stats import spearmanr
+
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.replay.output import replay
+
+    pairs = []
+    with tempfile.TemporaryDirectory(prefix="replay-sim-") as scratch:
+        for condition in conditions:
+            track, _, speed = condition.partition("@")
+            lap = Path(scratch) / f"{track}_{speed}"
+            _cli("record", "--track", track, "--laps", "1", "--speed", speed, "--out", str(lap))
+            for entry in models:
+                label, _, path = entry.partition("=")
+                report = replay(load_policy(path, trust=trust), [lap],
+                                Path(scratch) / "replay" / label / lap.name)["totals"]
+                extra = ["--trust-model"] if trust else []
+                run = json.loads(_cli("evaluate", path, "--track", track, "--speed", speed,
+                                      "--laps", "1", "--json", *extra,
+                                      "--out", str(Path(scratch) / "eval" / label / lap.name))
+                                 )["runs"][0]
+                true_per_km = run["interventions"] / (run["distance_m"] / 1000.0)
+                pairs.append({"model": label, "condition": condition,
+                              "replay_interventions_per_km": report["interventions_per_km"],
+                              "sim_interventions_per_km": round(true_per_km, 3),
+                              "replay_mean_abs_offset_m": report["mean_abs_offset_m"],
+                              "sim_mean_abs_cte_m": run["mean_abs_cte_m"]})
+                print(pairs[-1])
+
+    def rank(first: str, second: str) -> float:
+        value = spearmanr([pair[first] for pair in pairs], [pair[second] for pair in pairs])[0]
+        return round(float(value), 4)
+
+    return {
+        "sim_rank_correlation": rank("replay_interventions_per_km", "sim_interventions_per_km"),
+        "sim_rank_correlation_offset": rank("replay_mean_abs_offset_m", "sim_mean_abs_cte_m"),
+        "sim_interventions_per_km_mean_abs_difference": round(float(np.mean(
+            [abs(pair["replay_interventions_per_km"] - pair["sim_interventions_per_km"])
+             for pair in pairs])), 3),
+        "sim_pairs": pairs,
+    }
+
+
+def _cli(*arguments: str) -> str:
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "clonedrive", *arguments], check=True,
+                          capture_output=True, text=True)
+    return done.stdout
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--log", type=Path, default=THREE_CAMERA_LOG,
@@ -127,6 +191,10 @@ def main() -> None:
     parser.add_argument("--rows", type=int, default=200)
     parser.add_argument("--model", action="append", default=[], metavar="LABEL=PATH")
     parser.add_argument("--replay-log", action="append", type=Path, default=None)
+    parser.add_argument("--sim-model", action="append", default=[], metavar="LABEL=PATH",
+                        help="replay against true closed loop in clonedrive (repeatable)")
+    parser.add_argument("--sim-condition", action="append", default=None, metavar="TRACK@MPH",
+                        help="track and speed of the sim comparison (default: lake@15)")
     parser.add_argument("--trust-model", action="store_true")
     args = parser.parse_args()
 
@@ -144,6 +212,9 @@ def main() -> None:
           f"({time.perf_counter() - started:.0f} s)")
     logs = args.replay_log or list(REPLAY_LOGS)
     result["replay"] = replay_figures(args.model, logs, args.trust_model) if args.model else {}
+    if args.sim_model:
+        result.update(sim_comparison(args.sim_model, args.sim_condition or ["lake@15"],
+                                     args.trust_model))
     print(json.dumps(result))
 
 

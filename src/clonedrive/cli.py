@@ -29,6 +29,7 @@ VERBS: list[tuple[str, str]] = [
     ("autonomous", "autonomous"),
     ("evaluate", "evaluate"),
     ("crosscheck", "crosscheck"),
+    ("replay", "replay"),
     ("saliency", "saliency"),
     ("bench", "bench"),
     ("dagger", "dagger"),
@@ -48,7 +49,7 @@ TOP_EPILOG = """\
 in the order you would run them:
   clonedrive demo                                  # all of it, on built-in defaults
   clonedrive record ... -> check -> train -> evaluate -> report
-  then: saliency, crosscheck (real logs), bench, dagger, ensemble, export, drive (Udacity)
+  then: saliency, crosscheck + replay (real logs), bench, dagger, ensemble, export, drive (Udacity)
 
 'clonedrive VERB --help' explains a verb and ends with examples.
 Documentation: the docs/ folder of the repository (mkdocs serve), starting at

@@ -1,0 +1,222 @@
+"""Viewpoint synthesis against the real side cameras, and replay figures of models (issue 32).
+
+1. ``side_view_error_ratio``: on a three-camera Udacity log (default: the real
+   ``lake_rikki_3cam`` in ../shared/realdata), the left and right views synthesised from the
+   centre image alone, at the side offsets fitted from the log, against the real side images:
+   mean |synthesised - real| over the road region (0-255, both images smoothed by
+   ``clonedrive.replay.view.COMPARE_SMOOTHING_PX``), divided by the same for the unshifted
+   centre image. Also without the smoothing, and at the default (unfitted) offsets.
+2. With ``--model LABEL=PATH`` (repeatable): ``clonedrive replay``'s autonomy, interventions per
+   km, mean |offset| and jitter of each model on each replay log (default: the real lake and
+   mountain logs), beside the always-0 baseline (``always_zero``).
+3. With ``--sim-model LABEL=PATH`` (repeatable): ``sim_rank_correlation``, the Spearman rank
+   correlation between replay and true closed-loop interventions per km in clonedrive, over
+   every model and ``--sim-condition TRACK@MPH`` (a lap recorded with all three cameras, then
+   replayed; the same track and speed driven by ``clonedrive evaluate``); the same for the
+   replay's mean |offset| against the true mean |cross-track error|
+   (``sim_rank_correlation_offset``), and the mean |difference| in interventions per km.
+
+Run: python benchmarks/replay.py [--rows 200] [--model best=runs/demo/train/model.keras]
+     [--replay-log DIR ...] [--sim-model LABEL=PATH ... --sim-condition lake@15 ...]
+     [--trust-model]
+Ends with one JSON line: {"side_view_error_ratio", "side_view_error_synthesised",
+"side_view_error_unshifted", "side_view_error_ratio_unsmoothed",
+"side_view_error_ratio_default_rig", "rows_compared", "rows_better", "fitted_left_x_m",
+"fitted_right_x_m", "fitted_horizon_row", "replay": {label: {log: {autonomy_pct,
+interventions, interventions_per_km, distance_m, mean_abs_offset_m, jitter_per_s}}},
+and with --sim-model "sim_rank_correlation", "sim_rank_correlation_offset",
+"sim_interventions_per_km_mean_abs_difference", "sim_pairs"}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from clonedrive.data.driving_log import read_driving_log
+from clonedrive.replay.episode import frame_images
+from clonedrive.replay.view import (
+    CALIBRATION_FRAMES,
+    Rig,
+    calibrate,
+    road_mask,
+    synthesise,
+    view_error,
+)
+
+REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
+THREE_CAMERA_LOG = REALDATA / "lake_rikki_3cam"
+REPLAY_LOGS = (REALDATA / "lake_rikki_center", REALDATA / "mountain_tuong_center")
+ZERO_LABEL = "always_zero"  #: the baseline's label in the replay figures
+REPLAY_KEYS = ("autonomy_pct", "interventions", "interventions_per_km", "distance_m",
+               "mean_abs_offset_m", "jitter_per_s")
+
+
+def side_view_figures(log: Path, count: int) -> dict:
+    """The side-view comparison over ``count`` evenly spaced rows of ``log``."""
+    rows = read_driving_log(log).rows
+    picks = np.linspace(0, len(rows) - 1, min(count, len(rows))).round().astype(int)
+    frames = [frame_images(rows[pick]) for pick in picks]
+    fitted = calibrate(Rig(), [frames[i] for i in
+                               np.linspace(0, len(frames) - 1, CALIBRATION_FRAMES).astype(int)])
+    figures = {}
+    for name, rig, smoothing in (("fitted", fitted, None), ("unsmoothed", fitted, 1),
+                                 ("default", Rig(), None)):
+        errors = np.zeros((len(frames), 2, 2))  # frame, side, (synthesised, unshifted)
+        for side, camera in enumerate(("left", "right")):
+            where = rig.source_x(camera)
+            mask = road_mask(rig, where)
+            options = {} if smoothing is None else {"smoothing_px": smoothing}
+            for index, frame in enumerate(frames):
+                view = synthesise({"center": frame["center"]}, rig, where, 0.0)
+                errors[index, side] = (view_error(view, frame[camera], mask, **options),
+                                       view_error(frame["center"], frame[camera], mask,
+                                                  **options))
+        figures[name] = errors
+    main = figures["fitted"]
+    synthesised, unshifted = float(main[..., 0].mean()), float(main[..., 1].mean())
+    ratio = {name: round(float(errors[..., 0].mean() / errors[..., 1].mean()), 4)
+             for name, errors in figures.items()}
+    return {
+        "side_view_error_ratio": ratio["fitted"],
+        "side_view_error_synthesised": round(synthesised, 3),
+        "side_view_error_unshifted": round(unshifted, 3),
+        "side_view_error_ratio_unsmoothed": ratio["unsmoothed"],
+        "side_view_error_ratio_default_rig": ratio["default"],
+        "rows_compared": len(frames),
+        "rows_better": int((main[..., 0] < main[..., 1]).all(axis=1).sum()),
+        "fitted_left_x_m": fitted.left_x_m,
+        "fitted_right_x_m": fitted.right_x_m,
+        "fitted_horizon_row": fitted.horizon_row,
+    }
+
+
+class AlwaysZero:
+    """The baseline that needs no model: it never steers."""
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, image: np.ndarray, speed_mph: float) -> tuple[float, float]:
+        return 0.0, 0.0
+
+
+def replay_figures(models: list[str], logs: list[Path], trust: bool) -> dict:
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.replay.output import replay
+
+    results: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory(prefix="replay-") as scratch:
+        for entry in [*models, ZERO_LABEL]:
+            label, _, path = entry.partition("=")
+            if not path:
+                label, path = Path(entry).stem, entry
+            policy = AlwaysZero() if entry == ZERO_LABEL else load_policy(path, trust=trust)
+            results[label] = {}
+            for log in logs:
+                started = time.perf_counter()
+                report = replay(policy, [log], Path(scratch) / label / log.name,
+                                model_path=path)
+                figures = {key: report["totals"][key] for key in REPLAY_KEYS}
+                results[label][log.name] = figures
+                print(f"{label} on {log.name}: {figures} "
+                      f"({time.perf_counter() - started:.0f} s)")
+    return results
+
+
+def sim_comparison(models: list[str], conditions: list[str], trust: bool) -> dict:
+    """Each model replayed on a clonedrive-recorded lap (three cameras) and driven in true closed
+    loop on the same track at the same speed: rank correlations between the two over all
+    (model, condition) pairs, and the mean |difference| of interventions per km."""
+    from scipy.stats import spearmanr
+
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.replay.output import replay
+
+    pairs = []
+    with tempfile.TemporaryDirectory(prefix="replay-sim-") as scratch:
+        for condition in conditions:
+            track, _, speed = condition.partition("@")
+            lap = Path(scratch) / f"{track}_{speed}"
+            _cli("record", "--track", track, "--laps", "1", "--speed", speed, "--out", str(lap))
+            for entry in models:
+                label, _, path = entry.partition("=")
+                report = replay(load_policy(path, trust=trust), [lap],
+                                Path(scratch) / "replay" / label / lap.name)["totals"]
+                extra = ["--trust-model"] if trust else []
+                run = json.loads(_cli("evaluate", path, "--track", track, "--speed", speed,
+                                      "--laps", "1", "--json", *extra,
+                                      "--out", str(Path(scratch) / "eval" / label / lap.name))
+                                 )["runs"][0]
+                true_per_km = run["interventions"] / (run["distance_m"] / 1000.0)
+                pairs.append({"model": label, "condition": condition,
+                              "replay_interventions_per_km": report["interventions_per_km"],
+                              "sim_interventions_per_km": round(true_per_km, 3),
+                              "replay_mean_abs_offset_m": report["mean_abs_offset_m"],
+                              "sim_mean_abs_cte_m": run["mean_abs_cte_m"]})
+                print(pairs[-1])
+
+    def rank(first: str, second: str) -> float:
+        value = spearmanr([pair[first] for pair in pairs], [pair[second] for pair in pairs])[0]
+        return round(float(value), 4)
+
+    return {
+        "sim_rank_correlation": rank("replay_interventions_per_km", "sim_interventions_per_km"),
+        "sim_rank_correlation_offset": rank("replay_mean_abs_offset_m", "sim_mean_abs_cte_m"),
+        "sim_interventions_per_km_mean_abs_difference": round(float(np.mean(
+            [abs(pair["replay_interventions_per_km"] - pair["sim_interventions_per_km"])
+             for pair in pairs])), 3),
+        "sim_pairs": pairs,
+    }
+
+
+def _cli(*arguments: str) -> str:
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "clonedrive", *arguments], check=True,
+                          capture_output=True, text=True)
+    return done.stdout
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--log", type=Path, default=THREE_CAMERA_LOG,
+                        help="three-camera log for the side-view comparison")
+    parser.add_argument("--rows", type=int, default=200)
+    parser.add_argument("--model", action="append", default=[], metavar="LABEL=PATH")
+    parser.add_argument("--replay-log", action="append", type=Path, default=None)
+    parser.add_argument("--sim-model", action="append", default=[], metavar="LABEL=PATH",
+                        help="replay against true closed loop in clonedrive (repeatable)")
+    parser.add_argument("--sim-condition", action="append", default=None, metavar="TRACK@MPH",
+                        help="track and speed of the sim comparison (default: lake@15)")
+    parser.add_argument("--trust-model", action="store_true")
+    args = parser.parse_args()
+
+    started = time.perf_counter()
+    result = side_view_figures(args.log, args.rows)
+    print(f"side views on {args.log.name}, {result['rows_compared']} rows: synthesised "
+          f"{result['side_view_error_synthesised']:.2f} vs unshifted "
+          f"{result['side_view_error_unshifted']:.2f} -> ratio "
+          f"{result['side_view_error_ratio']:.3f} (unsmoothed "
+          f"{result['side_view_error_ratio_unsmoothed']:.3f}, default rig "
+          f"{result['side_view_error_ratio_default_rig']:.3f}); better on "
+          f"{result['rows_better']} of {result['rows_compared']} rows; fitted side cameras "
+          f"{result['fitted_left_x_m']:+.2f} / {result['fitted_right_x_m']:+.2f} m, horizon "
+          f"row {result['fitted_horizon_row']} "
+          f"({time.perf_counter() - started:.0f} s)")
+    logs = args.replay_log or list(REPLAY_LOGS)
+    result["replay"] = replay_figures(args.model, logs, args.trust_model) if args.model else {}
+    if args.sim_model:
+        result.update(sim_comparison(args.sim_model, args.sim_condition or ["lake@15"],
+                                     args.trust_model))
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()

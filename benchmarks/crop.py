@@ -97,36 +97,9 @@ def evaluate_steps_per_s(policy, full_frame: bool, seconds: float = 60.0
 def steady_steps_per_s(policy, rows, seconds: float = 20.0) -> float:
     """Steps/s of 8 cars in lock-step once their simulators are built (no scene builds, no map
     plots), the network on a second thread as evaluate runs it, frames of ``rows``."""
-    from clonedrive.episode.drivers import NetworkDriver
-    from clonedrive.episode.rules import EpisodeRules
-    from clonedrive.episode.runner import Episode, Runner
-    from clonedrive.keras_backend import compute_threads
-    from clonedrive.sim.camera_pool import CameraPool
-    from clonedrive.sim.simulator import SimConfig, Simulator
+    from evaluate import steady_loop_steps_per_s
 
-    speeds = [20.0 + 0.5 * i for i in range(8)]
-    config = SimConfig(cameras=("center",), renderer="software", render_rows=rows)
-    with CameraPool() as pool:
-        sims = [Simulator("lake", config, pool=pool) for _ in speeds]
-        try:
-            episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed,
-                                                  max_seconds=seconds), track="lake", seed=0)
-                        for sim, speed in zip(sims, speeds, strict=True)]
-            runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=True)
-            runner.reset()
-            steps = 0
-
-            def count(_step) -> None:
-                nonlocal steps
-                steps += 1
-
-            with compute_threads(1):
-                start = time.perf_counter()
-                runner.run(count)
-                return steps / (time.perf_counter() - start)
-        finally:
-            for sim in sims:
-                sim.close()
+    return steady_loop_steps_per_s(policy, 8, seconds, rows=rows, renderer="software")
 
 
 def crop_speedup(crop_top: int) -> tuple[float, list, float, float, float]:

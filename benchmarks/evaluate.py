@@ -77,10 +77,12 @@ def closed_loop_steps_per_s(policy, batch: int, seconds: float, *,
 
 
 def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
-                            overlap: bool = True, shared: bool = True) -> float:
+                            overlap: bool = True, shared: bool = True, rows=None,
+                            renderer: str = "auto") -> float:
     """Closed-loop steps/s of ``batch`` cars in lock-step once built: the runner's stepping
     alone (render, predict, control, physics, rules), without scene builds or map plots.
-    ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each."""
+    ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each.
+    ``rows``: render only these rows (the crop), as ``SimConfig.render_rows``."""
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
@@ -90,7 +92,8 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
 
     speeds = [20.0 + 0.5 * i for i in range(batch)]
     pool = CameraPool() if shared else None
-    sims = [Simulator("lake", SimConfig(cameras=("center",)), pool=pool) for _ in speeds]
+    config = SimConfig(cameras=("center",), render_rows=rows, renderer=renderer)
+    sims = [Simulator("lake", config, pool=pool) for _ in speeds]
     try:
         episodes = [Episode(sim, EpisodeRules(laps=1, set_speed_mph=speed, max_seconds=seconds),
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,

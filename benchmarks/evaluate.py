@@ -237,6 +237,48 @@ def _listed(pairs: list[tuple[float, float]]) -> str:
     return ", ".join(f"{a:.0f} / {b:.0f}" for a, b in pairs)
 
 
+def workers_pairs_steps_per_s(model, workers: int) -> list[tuple[float, float]]:
+    """PAIRS alternating pairs: 8 runs of 60 s from a model file on ``workers`` processes, and
+    rendering on as many processes (the model given on the command line, else ``model`` saved)."""
+    with tempfile.TemporaryDirectory() as folder:
+        if len(sys.argv) > 1:
+            model_file = sys.argv[1]
+        else:
+            model_file = str(Path(folder) / "fast.keras")
+            model.save(model_file)
+        pairs = []
+        for _ in range(PAIRS):
+            on_workers, workers_steps = workers_loop_steps_per_s(model_file, 8, 60.0, workers)
+            pairs.append((on_workers, render_only_workers_steps_per_s(workers_steps, workers)))
+    return pairs
+
+
+def server_round_trip_ms() -> tuple[float, float]:
+    """The drive server's round trip with the ``seed`` model: (median, p99) [ms], printed."""
+    from server_latency import round_trips, sample_jpeg
+
+    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.model.architectures import build_model
+    from clonedrive.udacity import protocol
+    from clonedrive.udacity.server import DriveServer
+    from clonedrive.udacity_spec import SET_SPEED_MPH
+
+    seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=SET_SPEED_MPH)
+    server = DriveServer(seed_policy, port=0, status_interval_s=0)
+    port = server.start()
+    try:
+        frame = protocol.telemetry_frame(0.0, 0.0, 5.0, sample_jpeg())
+        (trips,) = asyncio.run(round_trips([port], frame, 20, 300))
+    finally:
+        server.stop()
+    trips_ms = sorted(t * 1e3 for t in trips)
+    median = statistics.median(trips_ms)
+    p99 = trips_ms[min(len(trips_ms) - 1, int(round(0.99 * (len(trips_ms) - 1))))]
+    print(f"drive server, seed model, {len(trips)} messages: median {median:.2f} ms, "
+          f"p99 {p99:.2f} ms")
+    return median, p99
+
+
 def main() -> None:
     import numpy as np
 
@@ -262,17 +304,7 @@ def main() -> None:
     # As users run it: a model file, its groups on every core in worker processes, against the
     # reference on as many cores.
     workers = default_workers()
-    with tempfile.TemporaryDirectory() as folder:
-        if len(sys.argv) > 1:
-            model_file = sys.argv[1]
-        else:
-            model_file = str(Path(folder) / "fast.keras")
-            model.save(model_file)
-        workers_pairs = []
-        for _ in range(PAIRS):
-            on_workers, workers_steps = workers_loop_steps_per_s(model_file, 8, 60.0, workers)
-            workers_pairs.append((on_workers,
-                                  render_only_workers_steps_per_s(workers_steps, workers)))
+    workers_pairs = workers_pairs_steps_per_s(model, workers)
     on_workers, render_workers = _median_pair(workers_pairs)
     # The same loop with the network run by ONNX Runtime (evaluate --runtime onnx).
     from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
@@ -325,26 +357,7 @@ def main() -> None:
           + ", ".join(f"{alone:.0f} / {beside:.0f}" for alone, beside in beside_pairs)
           + f" frames/s -> render_beside_network_ratio {beside_ratio:.2f} (median)")
 
-    from server_latency import round_trips, sample_jpeg
-
-    from clonedrive.udacity import protocol
-    from clonedrive.udacity.server import DriveServer
-    from clonedrive.udacity_spec import SET_SPEED_MPH
-
-    seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=SET_SPEED_MPH)
-    jpeg = sample_jpeg()
-    server = DriveServer(seed_policy, port=0, status_interval_s=0)
-    port = server.start()
-    try:
-        frame = protocol.telemetry_frame(0.0, 0.0, 5.0, jpeg)
-        (trips,) = asyncio.run(round_trips([port], frame, 20, 300))
-    finally:
-        server.stop()
-    trips_ms = sorted(t * 1e3 for t in trips)
-    median = statistics.median(trips_ms)
-    p99 = trips_ms[min(len(trips_ms) - 1, int(round(0.99 * (len(trips_ms) - 1))))]
-    print(f"drive server, seed model, {len(trips)} messages: median {median:.2f} ms, "
-          f"p99 {p99:.2f} ms")
+    median, p99 = server_round_trip_ms()
     steps = max(single, batched)
     print(f"target >= 150 steps/s: {'met' if steps >= 150 else 'NOT met'} ({steps:.0f})")
     print(json.dumps({"loop_ratio": round(loop_ratio, 3),

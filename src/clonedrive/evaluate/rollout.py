@@ -92,6 +92,43 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
     return frame
 
 
+def _report_header(policy, first: EvalConfig, model_path: str | None) -> dict:
+    """eval.json before any run: the model, how it is driven and rendered, no runs yet."""
+    speed_head = bool(getattr(policy, "speed_head", False))
+    return {
+        "model": model_path,
+        "slow_in_curves": first.slow_in_curves,
+        "speed_head": speed_head,
+        "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
+        "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
+        "mirror_average": bool(getattr(policy, "mirror_average", False)),
+        "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
+                         + (", target speed learned (speed head), capped by the set speed"
+                            if speed_head else "")
+                         + (", target speed reduced with |steering|" if first.slow_in_curves
+                            else ""),
+        **_rendering(policy, first),
+        "complete": False,
+        "runs": [],
+        "totals": _totals([]),
+    }
+
+
+def _groups(parts: list[EvalConfig], part_specs: list[list[RunSpec]], workers: int
+            ) -> list[tuple[EvalConfig, list[tuple[int, RunSpec]]]]:
+    """Each part's runs cut into lock-step groups (at most ``batch`` runs, and no more groups
+    than ``workers`` need), each run with its index in the whole evaluation."""
+    groups = []
+    offset = 0
+    for part, specs_of_part in zip(parts, part_specs, strict=True):
+        size = max(1, min(part.batch, math.ceil(len(specs_of_part) / workers)))
+        for start in range(0, len(specs_of_part), size):
+            chunk = specs_of_part[start:start + size]
+            groups.append((part, list(enumerate(chunk, start=offset + start))))
+        offset += len(specs_of_part)
+    return groups
+
+
 def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | Path, *,
              progress: bool = True, model_path: str | None = None,
              model_options: dict | None = None) -> dict:
@@ -130,24 +167,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     part_specs = [run_specs(part) for part in parts]
     specs = [spec for specs in part_specs for spec in specs]
     part_of = [number for number, specs in enumerate(part_specs) for _ in specs]
-    speed_head = bool(getattr(policy, "speed_head", False))
-    report = {
-        "model": model_path,
-        "slow_in_curves": first.slow_in_curves,
-        "speed_head": speed_head,
-        "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
-        "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
-        "mirror_average": bool(getattr(policy, "mirror_average", False)),
-        "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
-                         + (", target speed learned (speed head), capped by the set speed"
-                            if speed_head else "")
-                         + (", target speed reduced with |steering|" if first.slow_in_curves
-                            else ""),
-        **_rendering(policy, first),
-        "complete": False,
-        "runs": [],
-        "totals": _totals([]),
-    }
+    report = _report_header(policy, first, model_path)
     if len(parts) == 1:
         save_config(first, out / "config.json")
     else:
@@ -169,14 +189,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     workers = first.workers or default_workers()
     if model_path is None:
         workers = 1  # an in-memory model cannot be loaded by another process
-    groups: list[tuple[EvalConfig, list[tuple[int, RunSpec]]]] = []
-    offset = 0
-    for part, specs_of_part in zip(parts, part_specs, strict=True):
-        size = max(1, min(part.batch, math.ceil(len(specs_of_part) / workers)))
-        for start in range(0, len(specs_of_part), size):
-            chunk = specs_of_part[start:start + size]
-            groups.append((part, list(enumerate(chunk, start=offset + start))))
-        offset += len(specs_of_part)
+    groups = _groups(parts, part_specs, workers)
     expected = [sum(_expected_steps(spec, part) for _, spec in group) for part, group in groups]
     # Only built-in tracks get video; a step with a video frame costs about half a step more.
     filmed = [part.video and any(not spec.unseen for _, spec in group) for part, group in groups]

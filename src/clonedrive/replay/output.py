@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import os
 from dataclasses import asdict
 from pathlib import Path
@@ -10,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.config import write_bytes_atomic, write_json_atomic
+from clonedrive.config import atomic_path, write_json_atomic
 from clonedrive.replay.episode import (
     Episode,
     ReplayConfig,
@@ -166,10 +165,11 @@ def plot_offsets(path: Path, driven: list[tuple[Path, list[Episode]]],
     axis.set_ylim(-1.25 * config.max_offset_m, 1.25 * config.max_offset_m)
     axis.set_title("replay: offset from the human's path (x: an intervention)", fontsize=10)
     figure.tight_layout()
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=110)
-    plt.close(figure)
-    write_bytes_atomic(path, buffer.getvalue())
+    try:
+        with atomic_path(path) as temporary:
+            figure.savefig(temporary, format="png", dpi=110)
+    finally:
+        plt.close(figure)
     return path
 
 

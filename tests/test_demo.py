@@ -23,6 +23,10 @@ def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys):
     assert "Closed-loop" in html or "closed-loop" in html
     assert (out / "report.md").is_file()
     assert "demo finished" in capsys.readouterr().out
+    assert summary["recipe"]["name"] == "best"
+    assert report["recipe"]["name"] == "best" and report["mirror_average"] is True
+    assert not report["slow_in_curves"]
+    assert (out / "recipe.toml").read_text().startswith("# clonedrive's best driver")
 
     # Run again on the same folder: finished stages are reused, not redone.
     assert main(["demo", "--quick", "--out", str(out), "--no-video"]) == 0
@@ -30,16 +34,33 @@ def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys):
     assert again["stages"]["record"]["recordings"][0]["reused"] is True
 
 
-def test_the_full_demo_plans_valid_stages():
+@pytest.mark.parametrize("recipe", ["best", "writeup"])
+def test_the_full_demo_plans_valid_stages(recipe):
     """The full demo is too long for the suite; its plan (every stage's config, validated in
     __post_init__) is built here, so a config rule cannot break it unnoticed."""
     from dataclasses import replace
 
-    from clonedrive.demo import DemoConfig, _evaluation_groups, demo_plan
+    from clonedrive.demo import DemoConfig, demo_plan
 
-    recordings, train, evaluation = demo_plan(DemoConfig())
-    assert len(recordings) == 8 and train.epochs == 8
-    groups = _evaluation_groups(DemoConfig(), evaluation)
-    assert [(g.tracks, g.speeds_mph, g.unseen) for g in groups] == [
-        (("lake",), (15.0, 30.0), 0), (("mountain",), (15.0, 25.0), 0), ((), (20.0,), 10)]
+    recordings, train, groups = demo_plan(DemoConfig(recipe=recipe))
     assert all(replace(g) == g for g in groups)
+    if recipe == "writeup":  # today's demo, unchanged
+        assert len(recordings) == 8 and train.epochs == 8 and not train.speed_head
+        assert [(g.tracks, g.speeds_mph, g.unseen, g.laps) for g in groups] == [
+            (("lake",), (15.0, 30.0), 0, 2), (("mountain",), (15.0, 25.0), 0, 1),
+            ((), (20.0,), 10, 1)]
+        return
+    assert train.speed_head and train.crop_top_px == 60
+    assert [(g.tracks, g.speeds_mph, g.unseen) for g in groups] == [
+        (("lake", "mountain"), (15.0, 30.0), 0), ((), (30.0,), 10)]
+    assert all(g.slow_in_curves is None for g in groups)  # the model's own: no curve rule
+
+
+def test_demo_options_override_the_recipe():
+    from clonedrive.demo import DemoConfig, demo_plan
+
+    _, train, groups = demo_plan(DemoConfig(epochs=2, unseen=3, model="seed", video=False,
+                                            seed=4))
+    assert (train.epochs, train.model, train.seed) == (2, "seed", 4)
+    assert [g.unseen for g in groups if g.unseen] == [3]
+    assert not any(g.video for g in groups)

@@ -2,10 +2,11 @@
 
 from clonedrive import udacity_spec as spec
 from clonedrive.cli import build_parser
-from clonedrive.data.recipe import DEFAULT_CORRECTION, WRITEUP_FOLDERS, writeup_recipe_text
+from clonedrive.data.recipe import DEFAULT_CORRECTION
 from clonedrive.data.recorder import RecordConfig
 from clonedrive.drivers.network import SpeedController
 from clonedrive.manual.session import ManualConfig
+from clonedrive.recipes.book import load_recipe_file
 from clonedrive.sim.simulator import SimConfig
 from clonedrive.udacity.client import ClientConfig
 from clonedrive.world.vehicle import VehicleParams
@@ -29,8 +30,8 @@ def test_stage_defaults_come_from_the_spec():
     controller = SpeedController()
     assert (controller.set_speed_mph, controller.kp, controller.ki) == (9.0, 0.1, 0.002)
     assert DEFAULT_CORRECTION == spec.STEERING_CORRECTION
-    recipe = writeup_recipe_text({name: f"data/{name}" for name in WRITEUP_FOLDERS})
-    assert "\ncorrection = 0.2\n" in recipe
+    writeup = load_recipe_file("writeup").data_recipe("data")
+    assert {item.correction for item in writeup.recordings} == {spec.STEERING_CORRECTION}
 
 
 def test_command_line_defaults_come_from_the_spec():

@@ -365,7 +365,11 @@ def retrain(base_config, recipe, init_from: Path, epochs: int, learning_rate: fl
         return out / "model.keras"
     config = dataclasses.replace(base_config, epochs=epochs, learning_rate=learning_rate,
                                  init_from=str(init_from), export_h5=False, seed=seed)
-    return train(config, recipe, out, progress=progress).model_path
+    from clonedrive.drivers.driving_settings import read_notes
+
+    # The new model is driven as the one it starts from (its file's settings and recipe).
+    notes = read_notes(init_from) or None
+    return train(config, recipe, out, progress=progress, notes=notes).model_path
 
 
 def evaluate_model(model_path: Path, config: DaggerConfig, out: Path, references: dict, *,

@@ -65,12 +65,17 @@ def test_serves_the_simulator_until_interrupted(tmp_path: Path, tiny_model_path:
     )
     try:
         port = None
+        seen = []
         for line in process.stderr:
+            seen.append(line)
             found = re.search(r"listening on ws://127\.0\.0\.1:(\d+)/socket\.io/", line)
             if found:
                 port = int(found[1])
                 break
         assert port is not None, "the server never said where it listens"
+        # It says how it drives the model: the options given, on a file without settings.
+        assert any("steering hold 0.05" in line and "slower in curves" in line
+                   for line in seen), seen
 
         async def drive() -> list[str]:
             url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"

@@ -10,7 +10,6 @@ import pytest
 
 from clonedrive.data.driving_log import CAMERAS, read_driving_log
 from clonedrive.data.recipe import (
-    WRITEUP_FOLDERS,
     Recipe,
     RecordingSpec,
     default_recipe_for,
@@ -18,7 +17,6 @@ from clonedrive.data.recipe import (
     load_recipe,
     parse_recipe,
     recipe_to_toml,
-    writeup_recipe_text,
 )
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
@@ -128,27 +126,6 @@ def test_names_with_newlines_and_control_characters_round_trip(tmp_path: Path) -
     text = recipe_to_toml(recipe)
     assert "\n[[recording]]" in text and "line\nbreak" not in text
     assert parse_recipe(text).recordings == recipe.recordings
-
-
-def test_writeup_recipe_template(tmp_path: Path) -> None:
-    folders = {name: tmp_path / name for name in WRITEUP_FOLDERS}
-    assert list(WRITEUP_FOLDERS) == [
-        "middle", "left", "right", "turns", "mountain", "mountain_reverse", "mountain_turns",
-        "hairpin",
-    ]
-    recipe = parse_recipe(writeup_recipe_text(folders), source="writeup")
-    specs = {spec.name: spec for spec in recipe.recordings}
-    assert list(specs) == list(WRITEUP_FOLDERS)
-    assert specs["left"].steering_offset == 0.25 and specs["right"].steering_offset == -0.25
-    assert specs["left"].cameras == "center"
-    assert all(specs[name].steering_offset == 0.0 for name in ("middle", "turns", "hairpin"))
-    assert all(spec.flip and spec.correction == 0.2 for spec in recipe.recordings)
-    assert all(spec.path == folders[spec.name] for spec in recipe.recordings)
-    with pytest.raises(ValueError, match="missing: hairpin"):
-        writeup_recipe_text({name: "x" for name in list(WRITEUP_FOLDERS)[:-1]})
-
-
-# --- expansion -----------------------------------------------------------------------------
 
 
 def test_expand_all_cameras_with_flips_labels_every_sample() -> None:

@@ -166,7 +166,7 @@ def test_a_missing_input_is_named_before_keras_loads(tmp_path: Path) -> None:
     for argv, says in (([str(tmp_path / "nowhere"), "--out", str(tmp_path / "r")],
                         "no driving log at"),
                        (["--recipe", str(tmp_path / "r.toml"), "--out", str(tmp_path / "r")],
-                        "recipe file not found")):
+                        "recipe not found")):
         done = subprocess.run([sys.executable, "-c", probe, "train", *argv],
                               capture_output=True, text=True, timeout=120)
         assert done.returncode == 1, done.stderr

@@ -50,10 +50,12 @@ class BenchConfig:
     workers: int | None = None  #: local worker processes (default: one per CPU core)
     ray: str | None = None  #: "auto", a Ray cluster address, or "local"
     batch: int = 4  #: episodes one worker drives in lock-step
-    slow_in_curves: bool = False  #: the network's target speed falls with |steering|
-    steering_filter_s: float = 0.0  #: low-pass on the predicted steering [s] (0 = off)
-    steering_hold: float = 0.0  #: hold the wheel through smaller steering jitter (0 = off)
-    mirror_average: bool = False  #: average each frame's prediction with its mirror image's
+    # What stands between each network and the controls (drivers.driving_settings); None:
+    # each model's own setting, stored in its file (drive.py's, all off, where it has none).
+    slow_in_curves: bool | None = None  #: the network's target speed falls with |steering|
+    steering_filter_s: float | None = None  #: low-pass on the predicted steering [s]
+    steering_hold: float | None = None  #: hold the wheel through smaller steering jitter
+    mirror_average: bool | None = None  #: average each frame's prediction with its mirror's
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -80,11 +82,30 @@ class BenchConfig:
             raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")
 
     def policy_options(self) -> dict:
-        """The NetworkPolicy options each model drives with (as NetworkPolicy.options() names
-        them; the rest keep their defaults: drive.py's PI gains)."""
-        return {"slow_in_curves": self.slow_in_curves,
-                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
-                "mirror_average": self.mirror_average}
+        """The NetworkPolicy options given for every model (as NetworkPolicy.options() names
+        them); the ones not given are each model's own (load_policy reads them from its file),
+        the rest keep their defaults: drive.py's PI gains."""
+        given = {"slow_in_curves": self.slow_in_curves,
+                 "steering_filter_s": self.steering_filter_s,
+                 "steering_hold": self.steering_hold, "mirror_average": self.mirror_average}
+        return {name: value for name, value in given.items() if value is not None}
+
+
+def _curve_rule_text(slow_in_curves: bool | None) -> str:
+    if slow_in_curves is None:
+        return ", curve slowing as each model's file says (off where it says nothing)"
+    return (", target speed reduced with |steering|" if slow_in_curves
+            else ", no curve slowing (drive.py parity)")
+
+
+def _model_settings(entry: str, config: BenchConfig) -> dict:
+    """The driving settings a model of the bench drives with: its file's, then the options
+    given for every model."""
+    from clonedrive.drivers.driving_settings import DrivingSettings, stored_settings
+
+    path = _label_and_path(entry)[1]
+    stored = stored_settings(path) if Path(path).is_file() else None
+    return {**(stored or DrivingSettings()).options(), **config.policy_options()}
 
 
 def _label_and_path(entry: str) -> tuple[str, str]:
@@ -152,8 +173,9 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         "suite": suite.to_dict(),
         "settings": {**config_to_dict(config), "workers": None if config.ray else workers},
         "speed_control": f"drive.py's PI (kp {SPEED_KP}, ki {SPEED_KI}) at the set speed"
-                         + (", target speed reduced with |steering|" if config.slow_in_curves
-                            else ", no curve slowing (drive.py parity)"),
+                         + _curve_rule_text(config.slow_in_curves),
+        "driving": {_label_and_path(model)[0]: _model_settings(model, config)
+                    for model in config.models},
         "rendering": {**renderer_info(config.renderer), "full_frame": config.full_frame},
         "complete": False,
     }

@@ -48,9 +48,6 @@ def add_arguments(parser) -> None:
                         help="run the batches as Ray tasks (pip install 'clonedrive[cluster]')")
     parser.add_argument("--batch", type=int, default=4,
                         help="episodes one worker drives in lock-step")
-    parser.add_argument("--slow-in-curves", action="store_true",
-                        help="reduce the target speed as the predicted steering grows "
-                             "(default: drive.py parity, the set speed throughout)")
     parser.add_argument("--offline-data", action="append", default=None, metavar="DIR",
                         help="held-out recordings: report each model's offline MSE beside its "
                              "closed-loop figures (repeatable)")
@@ -80,7 +77,7 @@ def run(args) -> int:
     try:
         config = BenchConfig(models=tuple(args.models), suite=args.suite,
                              splits=tuple(args.split or ()), workers=args.workers,
-                             ray=args.ray, batch=args.batch, slow_in_curves=args.slow_in_curves,
+                             ray=args.ray, batch=args.batch,
                              **steering_options(args),
                              scenery=not args.no_scenery, max_seconds=args.max_seconds,
                              offline_data=tuple(args.offline_data or ()),

@@ -6,33 +6,42 @@ import sys
 
 HELP = "record expert data, train, evaluate in closed loop and write the report (the main job)"
 DESCRIPTION = (
-    "From an empty folder: record the write-up's data with the expert driver (centred laps, "
-    "left/right edge laps relabelled with +-0.25, sharp turns, the mountain track both ways, its "
-    "turns and hairpin), balance, split and train a network, evaluate it in closed loop (lake at "
-    "15 and 30 mph, mountain at 15 and 25 mph, unseen generated tracks at 20 mph, with videos), "
-    "and write report.md / report.html. Finished stages are reused when run again on the same "
-    "folder. --quick runs a small version of every stage in about a minute."
+    "From an empty folder, follow a recipe: record its data with the expert driver, train a "
+    "network with its settings, evaluate the model in closed loop as the recipe says (the "
+    "built-in 'best': lake and mountain at 15 and 30 mph and 10 generated tracks it never saw "
+    "at 30 mph, with videos), and write report.md / report.html. The model file carries the "
+    "recipe's driving settings, so `clonedrive evaluate` and `clonedrive drive` drive it as the "
+    "demo did. Finished stages are reused when run again on the same folder. --quick runs a "
+    "small version of every stage in about a minute."
 )
 #: Example command lines, shown at the end of ``clonedrive demo --help``.
 EXAMPLES = (
-    "clonedrive demo                      # the whole job into runs/demo/",
+    "clonedrive demo                      # the whole job into runs/demo/, recipe 'best'",
+    "clonedrive demo --recipe writeup --out runs/writeup   # the seed write-up's system",
+    "clonedrive demo --recipe my.toml     # a copy of a recipe file, edited",
     "clonedrive demo --quick --out runs/q  # every stage, small, in about a minute",
 )
 
 
 def add_arguments(parser) -> None:
     from clonedrive.demo import DEFAULT_RUN_DIR, DEMO_MODELS, DemoConfig
+    from clonedrive.recipes.book import recipe_choices_text
 
     defaults = DemoConfig()
     parser.add_argument("--out", default=DEFAULT_RUN_DIR, help="run folder")
+    parser.add_argument("--recipe", default=defaults.recipe, metavar="NAME|FILE",
+                        help=f"a built-in recipe ({recipe_choices_text()}) or a recipe file: "
+                             f"what to record, how to train and drive (default "
+                             f"{defaults.recipe}); the files are in clonedrive/recipes/")
     parser.add_argument("--quick", action="store_true", default=defaults.quick,
                         help="small data, 2 epochs, one short evaluation (exercises every stage)")
     parser.add_argument("--epochs", type=int, default=defaults.epochs,
-                        help="override the training epochs")
+                        help="override the recipe's training epochs")
     parser.add_argument("--unseen", type=int, default=defaults.unseen, metavar="N",
-                        help="number of unseen generated tracks to evaluate on (default 10)")
+                        help="number of unseen generated tracks to evaluate on (default: the "
+                             "recipe's, 10 for the built-in ones)")
     parser.add_argument("--model", default=defaults.model, choices=DEMO_MODELS,
-                        help="network architecture")
+                        help="override the recipe's network architecture")
     parser.add_argument("--no-video", dest="video", action="store_false", default=defaults.video,
                         help="skip the mp4s")
     parser.add_argument("--workers", type=int, default=defaults.workers,
@@ -47,10 +56,13 @@ def run(args) -> int:
     from clonedrive.demo import DemoConfig, run_demo
 
     try:
-        config = DemoConfig(quick=args.quick, epochs=args.epochs, unseen=args.unseen,
-                            model=args.model, video=args.video, seed=args.seed,
+        config = DemoConfig(recipe=args.recipe, quick=args.quick, epochs=args.epochs,
+                            unseen=args.unseen, model=args.model, video=args.video, seed=args.seed,
                             workers=args.workers)
-    except ValueError as error:
+        from clonedrive.recipes.book import load_recipe_file
+
+        load_recipe_file(config.recipe)  # a bad recipe is refused before anything runs
+    except (ValueError, FileNotFoundError) as error:
         print(f"clonedrive demo: {error}", file=sys.stderr)
         return 2
     lock = claim("demo", args.out)

@@ -40,11 +40,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "image_folder", nargs="?", default=None, help="save received frames in this folder"
     )
     parser.add_argument("--speed", type=float, default=SET_SPEED_MPH, help="set speed, mph")
-    parser.add_argument(
-        "--slow-in-curves",
-        action="store_true",
-        help="lower the target speed as |steering| grows (down to 40%% of --speed)",
-    )
     add_steering_arguments(parser)
     defaults = DriveServerConfig()
     parser.add_argument("--host", default=defaults.host,
@@ -100,12 +95,13 @@ def run(args: argparse.Namespace) -> int:
     from clonedrive.udacity.server import DriveServer
 
     try:
-        policy = load_policy_from_args(
-            args, args.model, set_speed_mph=args.speed, slow_in_curves=args.slow_in_curves
-        )
+        policy = load_policy_from_args(args, args.model, set_speed_mph=args.speed)
     except (FileNotFoundError, ValueError) as error:
         print(f"clonedrive drive: {error}", file=sys.stderr)
         return 1
+    print(f"clonedrive drive: {args.model}"
+          + (" (speed head: the learned speed, capped by the set speed)" if policy.speed_head
+             else "") + f"; {policy.driving_settings().describe()}", file=sys.stderr)
     server = DriveServer(policy, config)
     try:
         server.serve_forever()

@@ -83,6 +83,7 @@ def _combine(args: argparse.Namespace, out) -> int:
     try:
         with atomic_path(out) as temporary:  # creates the folder
             ensemble.save(temporary)
+            _keep_first_members_notes(args.models[0], temporary)
     except OSError as error:
         print(f"clonedrive ensemble: cannot write {out}: {error}", file=sys.stderr)
         return 1
@@ -90,6 +91,15 @@ def _combine(args: argparse.Namespace, out) -> int:
     print(f"wrote {out}: the mean {kind} of {len(members)} models "
           f"(largest difference from the members' mean on test frames: {difference:.1e})")
     return 0
+
+
+def _keep_first_members_notes(first_member: str, path) -> None:
+    """The ensemble is driven as its first member says (its file's driving settings)."""
+    from clonedrive.drivers.driving_settings import read_notes, write_notes
+
+    notes = read_notes(first_member)
+    if notes and str(path).lower().endswith((".keras", ".h5")):
+        write_notes(path, notes)
 
 
 def _as_list(output) -> list:

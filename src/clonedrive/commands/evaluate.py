@@ -54,8 +54,6 @@ def add_arguments(parser) -> None:
                         help="with --video: paint the VisualBackProp saliency mask (where the "
                              "network looks) onto the frames")
     add_steering_arguments(parser)
-    parser.add_argument("--slow-in-curves", action="store_true",
-                        help="reduce the target speed as the predicted steering grows")
     parser.add_argument("--batch", type=int, default=d.batch,
                         help="runs driven in lock-step with their frames batched")
     parser.add_argument("--workers", type=int, default=d.workers,
@@ -110,7 +108,7 @@ def run(args) -> int:
         print(problem, file=sys.stderr)
         return 2
     try:
-        policy = load_policy_from_args(args, args.model, slow_in_curves=args.slow_in_curves)
+        policy = load_policy_from_args(args, args.model)
     except (FileNotFoundError, ValueError) as error:
         print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2

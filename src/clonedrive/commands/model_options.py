@@ -29,22 +29,31 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
              "default; each such prediction steers straight and is counted)")
 
 
-def add_steering_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--steering-filter``, ``--steering-hold`` and ``--mirror-average``: what stands between
-    the network and the wheel (:class:`clonedrive.drivers.network.SteeringFilter`, and the
-    policy's mirror averaging); all off by default, as drive.py."""
-    parser.add_argument("--steering-filter", type=float, default=0.0, metavar="S",
+def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = True) -> None:
+    """``--steering-filter``, ``--steering-hold``, ``--mirror-average`` and (with ``speed``)
+    ``--slow-in-curves``: what stands between the network and the controls
+    (:class:`clonedrive.drivers.driving_settings.DrivingSettings`). Each left out takes the
+    setting stored in the model file (drive.py's, all off, for a file without them)."""
+    parser.add_argument("--steering-filter", type=float, default=None, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
-                             "(0.1 = the expert's hand; 0 = off, as drive.py)")
-    parser.add_argument("--steering-hold", type=float, default=0.0, metavar="H",
+                             "(0.1 = the expert's hand; 0 = off, as drive.py; default: the "
+                             "model's own setting)")
+    parser.add_argument("--steering-hold", type=float, default=None, metavar="H",
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
-                             "delay; 0 = off, as drive.py)")
-    parser.add_argument("--mirror-average", action="store_true",
+                             "delay; 0 = off, as drive.py; default: the model's own setting)")
+    parser.add_argument("--mirror-average", action=argparse.BooleanOptionalAction, default=None,
                         help="predict on each frame and on its mirror image and average the "
                              "two (mirrored steering negated): cancels the part of the "
                              "network's frame-to-frame noise the two views do not share, for "
-                             "twice the inference (off by default, as drive.py)")
+                             "twice the inference (default: the model's own setting)")
+    if speed:
+        parser.add_argument("--slow-in-curves", action=argparse.BooleanOptionalAction,
+                            default=None,
+                            help="the hand-made curve rule: lower the target speed as "
+                                 "|steering| grows, down to 40%% of the set speed (default: "
+                                 "the model's own setting; off for a model without one, as "
+                                 "drive.py)")
 
 
 def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_options):
@@ -83,8 +92,10 @@ def check_finite_on_probe(policy, model_path: str) -> None:
 
 
 def steering_options(args: argparse.Namespace) -> dict:
-    """The :func:`add_steering_arguments` options as NetworkPolicy (and BenchConfig) name them
-    (their defaults when the command has none)."""
-    return {"steering_filter_s": getattr(args, "steering_filter", 0.0),
-            "steering_hold": getattr(args, "steering_hold", 0.0),
-            "mirror_average": getattr(args, "mirror_average", False)}
+    """The :func:`add_steering_arguments` options given on the command line, as NetworkPolicy
+    (and BenchConfig) name them; the ones left out are not in the dict (the model's own)."""
+    given = {"steering_filter_s": getattr(args, "steering_filter", None),
+             "steering_hold": getattr(args, "steering_hold", None),
+             "mirror_average": getattr(args, "mirror_average", None),
+             "slow_in_curves": getattr(args, "slow_in_curves", None)}
+    return {name: value for name, value in given.items() if value is not None}

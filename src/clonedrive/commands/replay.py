@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write replay.mp4: the frames the model saw, with a HUD")
     parser.add_argument("--json", action="store_true", help="print replay.json's content")
     add_model_arguments(parser)
-    add_steering_arguments(parser)
+    add_steering_arguments(parser, speed=False)
 
 
 def run(args: argparse.Namespace) -> int:

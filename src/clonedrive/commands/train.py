@@ -9,12 +9,19 @@ from pathlib import Path
 
 from clonedrive.model.losses import SPEED_LOSSES
 
-HELP = "train a Keras steering network on recordings (a recipe file or folders)"
+MODEL_CHOICES = ("seed", "pilotnet", "fast")
+
+HELP = "train a Keras steering network on recordings (folders, with a recipe's settings)"
 DESCRIPTION = (
-    "Train a network that predicts steering from one 160x320 RGB camera frame. Data comes from "
-    "a recipe file (--recipe recipe.toml: recordings with per-recording cameras, steering "
-    "offset, flips, weight) or from recording folders DIR ... (center + side cameras with "
-    "--correction, mirrored copies). Steering is balanced (the write-up's 20-bin method), split "
+    "Train a network that predicts steering (and with a speed head the expert's target speed) "
+    "from one 160x320 RGB camera frame. The settings come from a recipe (--recipe, default "
+    "'best'; 'writeup' is the seed write-up's): the network, epochs, learning rate, crop, "
+    "side-camera correction, and how the model is to be driven, which is stored in the model "
+    "file. Options override it one by one. Data comes from recording folders DIR ... (center + "
+    "side cameras, mirrored copies), from the recipe's own recordings (--data FOLDER holding "
+    "them by name, as `clonedrive demo` records them), or from a data recipe file (--recipe "
+    "data.toml: recordings with per-recording cameras, steering offset, flips, weight). "
+    "Steering may be balanced (the write-up's 20-bin method), is split "
     "into training and validation sets (--split random|blocks|recording), augmented for "
     "training, and fitted with Adam on MSE (with --speed-head also on the expert's target "
     "speed, from target_speed.csv, or the recorded speed for logs without one). The --out "
@@ -25,8 +32,10 @@ DESCRIPTION = (
 )
 #: Example command lines, shown at the end of ``clonedrive train --help``.
 EXAMPLES = (
-    "clonedrive train data/middle data/weave --out runs/x",
-    "clonedrive train --recipe runs/demo/recipe.toml --model fast --epochs 6 --out runs/y",
+    "clonedrive train data/middle data/weave --out runs/x      # recipe 'best'",
+    "clonedrive train --recipe best --data runs/demo/data --out runs/y   # the demo's model",
+    "clonedrive train data/middle --recipe writeup --epochs 3 --out runs/z",
+    "clonedrive train --recipe runs/demo/train/recipe.toml --out runs/w   # a data recipe",
 )
 
 
@@ -37,9 +46,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     given = argparse.SUPPRESS  # an option not given leaves no attribute (see _overrides)
     parser.add_argument("dirs", nargs="*", metavar="DIR",
                         help="recording folders (driving_log.csv + IMG/), default recipe each")
-    parser.add_argument("--recipe", type=Path, help="recipe TOML file (instead of DIRs)")
+    parser.add_argument("--recipe", default=None, metavar="NAME|FILE",
+                        help="a built-in recipe (best, writeup) or a recipe file: the training "
+                             "and driving settings, and with no DIRs the data (default: best); "
+                             "or a data recipe file (its recordings, with best's settings)")
+    parser.add_argument("--data", type=Path, default=None, metavar="FOLDER",
+                        help="the folder holding a recipe's recordings by name (no DIRs)")
     parser.add_argument("--out", type=Path, required=True, help="run folder to write")
-    parser.add_argument("--model", default=given, choices=("seed", "pilotnet", "fast"),
+    parser.add_argument("--model", default=given, choices=MODEL_CHOICES,
                         help=f"architecture (default {d.model})")
     parser.add_argument("--epochs", type=int, default=given,
                         help=f"total epochs (default {d.epochs})")
@@ -116,35 +130,27 @@ def _overrides(args: argparse.Namespace, config_class) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
-
     missing = _missing_input(args)
     if missing:  # before Keras loads, which takes seconds
         print(f"clonedrive train: {missing}", file=sys.stderr)
         return 1
     from clonedrive.data.output_lock import claim_output
-    from clonedrive.model.train import TrainConfig, load_run_config, train
+    from clonedrive.model.train import train
 
     out: Path = args.out
     try:
-        if args.resume and (out / "config.json").is_file():
-            base = load_run_config(out)
-            source = args.recipe or (args.dirs or None) or out / "recipe.toml"
-        else:
-            base = TrainConfig()
-            if args.recipe and args.dirs:
-                raise ValueError("give either --recipe or DIRs, not both")
-            source = args.recipe or args.dirs
-            if not source:
-                raise ValueError("nothing to train on: give --recipe FILE or DIR [DIR ...]")
-        try:
-            config = dataclasses.replace(base, **_overrides(args, TrainConfig))
-        except ValueError as error:  # a bad option: refused before anything is read
-            print(f"clonedrive train: {error}", file=sys.stderr)
-            return 2
-        inputs = [*args.dirs, *([args.recipe] if args.recipe else [])]
+        config, source, notes = _plan(args)
+    except _BadOption as error:  # refused before anything is read
+        print(f"clonedrive train: {error}", file=sys.stderr)
+        return 2
+    except (ValueError, FileNotFoundError) as error:
+        print(f"clonedrive train: {error}", file=sys.stderr)
+        return 1
+    try:
+        inputs = [*args.dirs, *([args.recipe] if _is_file(args.recipe) else [])]
         with claim_output("train", out, inputs=inputs):
-            result = train(config, source, out, resume=args.resume, progress=not args.json)
+            result = train(config, source, out, resume=args.resume, progress=not args.json,
+                           notes=notes)
     except (ValueError, FileNotFoundError, FileExistsError) as error:
         print(f"clonedrive train: {error}", file=sys.stderr)
         return 1
@@ -172,10 +178,62 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+class _BadOption(ValueError):
+    """An option value TrainConfig refuses (exit status 2, as argparse's own)."""
+
+
+def _settings(make):
+    try:
+        return make()
+    except ValueError as error:
+        raise _BadOption(str(error)) from None
+
+
+def _plan(args: argparse.Namespace):
+    """(TrainConfig, the data, the notes the model files carry) from the command line: the
+    recipe's settings with the options given on top; a resumed run keeps its own."""
+    import dataclasses
+
+    from clonedrive.model.train import TrainConfig, load_run_config
+    from clonedrive.recipes.book import DEFAULT_RECIPE, is_whole_recipe, load_recipe_file
+
+    if args.resume and (args.out / "config.json").is_file():
+        source = (Path(args.recipe) if _is_file(args.recipe) and not is_whole_recipe(args.recipe)
+                  else None) or (args.dirs or None) or args.out / "recipe.toml"
+        base = load_run_config(args.out)
+        return (_settings(lambda: dataclasses.replace(base, **_overrides(args, TrainConfig))),
+                source, None)
+    if not args.recipe and not args.dirs:
+        raise ValueError("nothing to train on: give DIR [DIR ...], --recipe FILE, or "
+                         "--recipe NAME --data FOLDER")
+    whole = args.recipe and is_whole_recipe(args.recipe)
+    recipe = load_recipe_file(args.recipe if whole else DEFAULT_RECIPE)
+    config = _settings(lambda: recipe.train_config(**_overrides(args, TrainConfig)))
+    if args.dirs:
+        if args.recipe and not whole:
+            raise ValueError("give either a data recipe file or DIRs, not both")
+        source = recipe.folders_recipe(args.dirs, correction=getattr(args, "correction", None))
+        config = dataclasses.replace(config, correction=source.recordings[0].correction)
+    elif whole:
+        source = recipe.data_recipe(args.data) if args.data else recipe.data_recipe_without_data()
+    else:
+        source = Path(args.recipe)
+    return config, source, recipe.notes()
+
+
+def _is_file(recipe: str | None) -> bool:
+    return bool(recipe) and Path(recipe).is_file()
+
+
 def _missing_input(args: argparse.Namespace) -> str | None:
     """What the command line names that does not exist (a recipe file, a recording folder)."""
-    if args.recipe and not Path(args.recipe).is_file():
-        return f"recipe file not found: {args.recipe}"
+    from clonedrive.recipes.book import BUILT_IN
+
+    if args.recipe and args.recipe not in BUILT_IN and not Path(args.recipe).is_file():
+        return (f"recipe not found: {args.recipe} (a recipe file, or one of the built-in "
+                f"recipes: {', '.join(BUILT_IN)})")
+    if args.data is not None and not Path(args.data).is_dir():
+        return f"--data {args.data}: no such folder"
     for folder in args.dirs or ():
         if not Path(folder).exists():
             return (f"no driving log at {folder}: expected a folder holding driving_log.csv "

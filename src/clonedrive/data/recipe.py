@@ -37,7 +37,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import string
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,7 +58,9 @@ DEFAULT_CORRECTION = STEERING_CORRECTION
 FALLBACK_ROW_PERIOD_S = 1.0 / CONTROL_HZ
 
 _TOP_KEYS = ("root", "defaults", "recording")
-_SETTING_KEYS = ("cameras", "correction", "steering_offset", "flip", "weight")
+#: The keys of [defaults] and of each [[recording]] that say how a recording becomes samples.
+SETTING_KEYS = ("cameras", "correction", "steering_offset", "flip", "weight")
+_SETTING_KEYS = SETTING_KEYS
 _RECORDING_KEYS = ("path", "name", *_SETTING_KEYS)
 _CAMERA_CODES = {camera: index for index, camera in enumerate(CAMERAS)}
 
@@ -177,6 +178,14 @@ def parse_recipe(
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{source}: not valid TOML: {error}") from None
+    return recipe_from_table(data, source=source, base_dir=base_dir)
+
+
+def recipe_from_table(
+    data: Mapping, *, source: str = "<recipe>", base_dir: str | os.PathLike = "."
+) -> Recipe:
+    """A Recipe from a parsed recipe table (``root``, ``defaults``, ``recording``); errors name
+    ``source`` and the offending key."""
     _reject_unknown(data, _TOP_KEYS, source, "top level")
 
     base = Path(base_dir)
@@ -414,88 +423,3 @@ def _row_times_s(rows) -> np.ndarray:
         return np.arange(len(rows), dtype=np.float64) * FALLBACK_ROW_PERIOD_S
     origin = moments[0]
     return np.array([(moment - origin).total_seconds() for moment in moments], dtype=np.float64)
-
-
-# --- the write-up's recipe --------------------------------------------------------------------
-
-#: Folder names (keys) :data:`WRITEUP_RECIPE` expects, and what each recording holds.
-WRITEUP_FOLDERS: dict[str, str] = {
-    "middle": "laps driven in the centre of the lake track",
-    "left": "a lap along the left edge of the road (labels get +0.25: steer back right)",
-    "right": "a lap along the right edge of the road (labels get -0.25: steer back left)",
-    "turns": "extra passes through the sharp turns of the lake track",
-    "mountain": "a lap of the mountain track",
-    "mountain_reverse": "a lap of the mountain track driven the other way round",
-    "mountain_turns": "extra passes through the sharp turns of the mountain track",
-    "hairpin": "extra passes through the mountain track's hairpin",
-}
-
-#: The write-up's data as a recipe template: fill it with :func:`writeup_recipe_text`.
-#: Placeholders ``${middle}``, ``${left}``, ... stand for quoted TOML path strings.
-WRITEUP_RECIPE = string.Template(
-    """\
-# The write-up's training data: centre laps, left/right edge laps with +-0.25 steering
-# offsets, the sharp turns, the mountain track both ways, and the hairpin.
-# Steering: [-1, 1] = wheel angle / 25 deg, positive = right.
-
-[defaults]
-cameras = "all"        # center + left/right cameras, side labels corrected by +-correction
-correction = ${correction}
-flip = true            # mirrored copies with negated steering
-steering_offset = 0.0
-weight = 1.0
-
-[[recording]]
-name = "middle"
-path = ${middle}
-
-[[recording]]
-name = "left"
-path = ${left}
-cameras = "center"     # the offset is the correction here; side cameras would double it
-steering_offset = 0.25
-
-[[recording]]
-name = "right"
-path = ${right}
-cameras = "center"
-steering_offset = -0.25
-
-[[recording]]
-name = "turns"
-path = ${turns}
-
-[[recording]]
-name = "mountain"
-path = ${mountain}
-
-[[recording]]
-name = "mountain_reverse"
-path = ${mountain_reverse}
-
-[[recording]]
-name = "mountain_turns"
-path = ${mountain_turns}
-
-[[recording]]
-name = "hairpin"
-path = ${hairpin}
-"""
-)
-
-
-def writeup_recipe_text(folders: Mapping[str, str | os.PathLike]) -> str:
-    """The write-up's recipe as TOML, with each name of :data:`WRITEUP_FOLDERS` mapped to a
-    recording folder. A missing or unknown name raises ``ValueError``."""
-    missing = [name for name in WRITEUP_FOLDERS if name not in folders]
-    unknown = [name for name in folders if name not in WRITEUP_FOLDERS]
-    if missing or unknown:
-        raise ValueError(
-            f"write-up recipe needs folders for exactly: {', '.join(WRITEUP_FOLDERS)}"
-            + (f"; missing: {', '.join(missing)}" if missing else "")
-            + (f"; unknown: {', '.join(unknown)}" if unknown else "")
-        )
-    return WRITEUP_RECIPE.substitute(
-        {name: _toml_string(os.fspath(folders[name])) for name in WRITEUP_FOLDERS},
-        correction=DEFAULT_CORRECTION,
-    )

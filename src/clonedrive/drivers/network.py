@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from clonedrive.drivers.crop import visible_rows
+from clonedrive.drivers.driving_settings import DrivingSettings
 from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
@@ -198,6 +199,9 @@ class NetworkPolicy:
         #: Which frames of the last :meth:`predict` batch had a NaN or infinite steering
         #: prediction (so a driver of several cars can count them per car).
         self.last_nonfinite = np.zeros(0, dtype=bool)
+        #: What the model file says about itself (drivers.driving_settings.read_notes): the
+        #: recipe that made it; {} for a model given in memory or a file without notes.
+        self.notes: dict = {}
 
     def reset(self) -> None:
         self.controller.reset()
@@ -228,6 +232,13 @@ class NetworkPolicy:
                 "min_speed_fraction": self.min_speed_fraction,
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
                 "mirror_average": self.mirror_average, "batch_size": self.batch_size}
+
+    def driving_settings(self) -> DrivingSettings:
+        """What stands between this policy's network and the controls."""
+        return DrivingSettings(slow_in_curves=self.slow_in_curves,
+                               steering_filter_s=self.steering_filter_s,
+                               steering_hold=self.steering_hold,
+                               mirror_average=self.mirror_average)
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to
@@ -417,11 +428,24 @@ def load_policy(
     portable: PortableModel | None = None, **kwargs: object
 ) -> NetworkPolicy:
     """A :class:`NetworkPolicy` for the model file at ``path`` (see :func:`load_model` for
-    ``trust`` and ``runtime``); ``kwargs`` go to its constructor. ``portable``: that model's
-    checked traces (:meth:`NetworkPolicy.portable`), run by PyTorch alone instead of reading
-    the file with Keras (a worker process's start); the same outputs to the last bit."""
+    ``trust`` and ``runtime``), driven with the settings stored in the file
+    (:mod:`clonedrive.drivers.driving_settings`; drive.py's where it has none); ``kwargs`` go
+    to its constructor and override them, a ``None`` value leaving the file's setting.
+    ``portable``: that model's checked traces (:meth:`NetworkPolicy.portable`), run by PyTorch
+    alone instead of reading the file with Keras (a worker process's start); the same outputs
+    to the last bit. The policy's ``notes`` are the file's notes (its recipe, if it has one)."""
+    from clonedrive.drivers.driving_settings import read_notes
+
+    notes = read_notes(path)
+    stored = notes.get("driving")
+    settings = DrivingSettings.from_dict(stored, f"{path}: driving settings") \
+        if isinstance(stored, dict) else DrivingSettings()
+    options = {**settings.options(), **{k: v for k, v in kwargs.items() if v is not None}}
     if portable is not None:
         from clonedrive.drivers.traced import TracedModel
 
-        return NetworkPolicy(TracedModel(portable), **kwargs)
-    return NetworkPolicy(load_model(path, trust=trust, runtime=runtime), **kwargs)
+        policy = NetworkPolicy(TracedModel(portable), **options)
+    else:
+        policy = NetworkPolicy(load_model(path, trust=trust, runtime=runtime), **options)
+    policy.notes = notes
+    return policy

@@ -37,7 +37,9 @@ class EvalConfig:
     unseen_speed_mph: float | None = None  #: speed on unseen tracks (default: the first speed)
     unseen_laps: int | None = None  #: laps on unseen tracks (default: laps)
     video: bool = False
-    slow_in_curves: bool = False  #: target speed falls as the predicted steering grows
+    #: the hand-made curve rule (target speed falls as the predicted steering grows); None:
+    #: as the policy drives (the model file's own setting)
+    slow_in_curves: bool | None = None
     scenery: bool = True
     batch: int = 8  #: runs driven in lock-step (their frames batched through the network)
     #: worker processes the runs are spread over (None: one per CPU core); each drives its

@@ -92,12 +92,28 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
     return frame
 
 
+def _with_curve_rule(policy, parts: list[EvalConfig]):
+    """``policy``, or a fork of it driving with the parts' ``slow_in_curves`` where that is
+    given and differs from the policy's own."""
+    if len({part.slow_in_curves for part in parts}) > 1:
+        raise ValueError("the parts of one evaluation must agree on slow_in_curves")
+    slow_in_curves = parts[0].slow_in_curves
+    if slow_in_curves is None or not hasattr(policy, "slow_in_curves") \
+            or policy.slow_in_curves == slow_in_curves:
+        return policy
+    car = policy.fork()
+    car.slow_in_curves = bool(slow_in_curves)
+    return car
+
+
 def _report_header(policy, first: EvalConfig, model_path: str | None) -> dict:
     """eval.json before any run: the model, how it is driven and rendered, no runs yet."""
     speed_head = bool(getattr(policy, "speed_head", False))
+    slow_in_curves = bool(getattr(policy, "slow_in_curves", False))
     return {
         "model": model_path,
-        "slow_in_curves": first.slow_in_curves,
+        "recipe": dict(getattr(policy, "notes", {}).get("recipe") or {}) or None,
+        "slow_in_curves": slow_in_curves,
         "speed_head": speed_head,
         "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
         "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
@@ -105,7 +121,7 @@ def _report_header(policy, first: EvalConfig, model_path: str | None) -> dict:
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")
-                         + (", target speed reduced with |steering|" if first.slow_in_curves
+                         + (", target speed reduced with |steering|" if slow_in_curves
                             else ""),
         **_rendering(policy, first),
         "complete": False,
@@ -160,8 +176,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     if not parts:
         raise ValueError("nothing to evaluate: no config given")
     first = parts[0]
-    if any(part.slow_in_curves != first.slow_in_curves for part in parts):
-        raise ValueError("the parts of one evaluation must agree on slow_in_curves")
+    policy = _with_curve_rule(policy, parts)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     part_specs = [run_specs(part) for part in parts]
@@ -238,7 +253,9 @@ def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
     from clonedrive.drivers.network import load_policy
 
     config: EvalConfig = task["config"]
-    options = {**task.get("policy_options", {}), "slow_in_curves": config.slow_in_curves}
+    options = dict(task.get("policy_options", {}))
+    if config.slow_in_curves is not None:
+        options["slow_in_curves"] = config.slow_in_curves
     policy = load_policy(task["model_path"], **task["model_options"],
                          portable=task.get("portable"), **options)
     results: list[tuple[int, dict]] = []

@@ -168,6 +168,7 @@ def train(
     *,
     resume: bool = False,
     progress: bool = True,
+    notes: dict | None = None,
 ) -> TrainResult:
     """Train ``config.model`` on ``source`` (a Recipe, a recipe file, or recording folders)
     and write the run folder ``out_dir`` (see module doc).
@@ -175,6 +176,10 @@ def train(
     With ``resume``, continue the run in ``out_dir`` from ``last.keras``: ``config`` must
     match the saved ``config.json`` except for ``epochs``, ``early_stopping_patience`` and
     ``workers``. Without it, ``out_dir`` must not hold a previous run.
+
+    ``notes``: what every model file written carries about how to drive it and the recipe
+    that made it (:func:`clonedrive.drivers.driving_settings.notes_for`); a resumed run keeps
+    its ``last.keras``'s notes when given none.
     """
     from clonedrive.keras_backend import import_keras
 
@@ -187,6 +192,10 @@ def train(
     out = Path(out_dir)
     recipe = resolve_source(source, config.correction)
     state = _prepare_run_folder(out, config, recipe, resume)
+    if notes is None and resume and (out / "last.keras").is_file():
+        from clonedrive.drivers.driving_settings import read_notes
+
+        notes = read_notes(out / "last.keras") or None
     save_config(config, out / "config.json")
     write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
 
@@ -221,7 +230,7 @@ def train(
             data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
             speed_head=config.speed_head, partners=_partners(config, data.val),
         )
-        recorder = _run_recorder_class()(out, config, history, state)
+        recorder = _run_recorder_class()(out, config, history, state, notes)
         if epochs_done < config.epochs and not recorder.should_stop():
             model.fit(
                 train_batches,
@@ -236,7 +245,7 @@ def train(
         data.cache.close(delete=True)
 
     if config.export_h5 and (out / "model.keras").is_file():
-        export_h5(out / "model.keras", out / "model.h5")
+        export_h5(out / "model.keras", out / "model.h5", notes=notes)
     best = recorder.best_epoch()
     return TrainResult(
         out_dir=out,
@@ -308,17 +317,26 @@ def load_initial_weights(model, path: str | os.PathLike) -> int:
     return copied
 
 
-def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike) -> Path:
-    """Save the model at ``keras_path`` in the legacy HDF5 format (atomically)."""
+def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
+              notes: dict | None = None) -> Path:
+    """Save the model at ``keras_path`` in the legacy HDF5 format (atomically), with ``notes``
+    (drivers.driving_settings) when given. A model with a speed head is saved with its
+    steering output only: Udacity's drive.py expects one output."""
     from clonedrive.keras_backend import import_keras
 
     keras = import_keras()
 
     h5_path = Path(h5_path)
     model = keras.saving.load_model(keras_path, safe_mode=True, compile=False)
+    if len(model.outputs) > 1:
+        model = keras.Model(model.inputs, model.outputs[0], name=model.name)
     logging.getLogger("absl").setLevel(logging.ERROR)  # "HDF5 is legacy": we know
     with atomic_path(h5_path) as temporary:
         model.save(temporary)
+        if notes:
+            from clonedrive.drivers.driving_settings import write_notes
+
+            write_notes(temporary, notes)
     return h5_path
 
 
@@ -386,7 +404,6 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     """expand -> speed-label headroom -> balance -> split -> decode the used images once
     (unusable ones skipped)."""
     from clonedrive.data.balance import save_balance_plots
-    from clonedrive.data.batches import FRAME_BYTES
     from clonedrive.data.recipe import expand
     from clonedrive.data.split import split_samples
 
@@ -435,7 +452,8 @@ def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: b
     samples = samples.compact()
     cache = _open_cache(config, samples, out)
     lines.append(
-        f"image cache: {len(cache)} images, {len(cache) * FRAME_BYTES / 1e6:.0f} MB "
+        f"image cache: {len(cache)} images, rows {cache.rows[0]}-{cache.rows[1] - 1} of each, "
+        f"{cache.nbytes / 1e6:.0f} MB "
         + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
     )
     try:
@@ -522,16 +540,30 @@ def _balance(config: TrainConfig, samples, lines: list[str]):
 
 def _open_cache(config: TrainConfig, samples, out: Path):
     """The decoded-image cache ``config.cache`` asks for (memory, a memmap in ``out``, or
-    memory up to the limit and a memmap above it)."""
+    memory up to the limit and a memmap above it), holding only the rows the network and its
+    augmentation read (:func:`cached_rows`)."""
     from clonedrive.data.batches import ImageCache
 
+    rows = cached_rows(config)
     if config.cache == "memory":
-        return ImageCache(samples.unique_paths)
+        return ImageCache(samples.unique_paths, rows=rows)
     if config.cache == "memmap":
         return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
-                          memory_limit_bytes=0)
+                          memory_limit_bytes=0, rows=rows)
     return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
-                      memory_limit_bytes=config.cache_memory_limit_mb * 1024**2)
+                      memory_limit_bytes=config.cache_memory_limit_mb * 1024**2, rows=rows)
+
+
+def cached_rows(config: TrainConfig) -> tuple[int, int]:
+    """The frame rows training reads: the network's crop, widened by augmentation's largest
+    vertical shift (a shifted picture's visible rows come from up to that far away)."""
+    from clonedrive.data.augment import AugmentConfig
+    from clonedrive.model.architectures import CROP_BOTTOM_PX
+    from clonedrive.udacity_spec import IMAGE_HEIGHT
+
+    margin = AugmentConfig().vertical_shift_max_px if config.augment else 0
+    return (max(0, config.crop_top_px - margin),
+            min(IMAGE_HEIGHT, IMAGE_HEIGHT - CROP_BOTTOM_PX + margin))
 
 
 def _unbalanced(result):
@@ -563,9 +595,11 @@ def _run_recorder_class():
         """After every epoch: last.keras, model.keras if best, history.csv, loss.png, state.json
         (in that order, each atomically); early stopping from the whole history."""
 
-        def __init__(self, out: Path, config: TrainConfig, history: list[dict], state: dict):
+        def __init__(self, out: Path, config: TrainConfig, history: list[dict], state: dict,
+                     notes: dict | None = None):
             super().__init__()
             self.out = out
+            self.notes = notes
             self.config = config
             self.history = list(history)
             self.state = dict(state)
@@ -602,9 +636,9 @@ def _run_recorder_class():
                 row["val_speed_mse"] = float(logs.get("val_target_speed_mse", math.nan))
             previous_best = self.best_epoch()[1] if self.history else math.inf
             self.history.append(row)
-            _save_model_atomic(self.model, self.out / "last.keras")
+            _save_model_atomic(self.model, self.out / "last.keras", self.notes)
             if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
-                _save_model_atomic(self.model, self.out / "model.keras")
+                _save_model_atomic(self.model, self.out / "model.keras", self.notes)
             write_history(self.out / HISTORY_NAME, self.history)
             plot_loss(self.history, self.out / "loss.png",
                       consistency=bool(self.config.consistency))
@@ -623,9 +657,13 @@ def _run_recorder_class():
 
     return RunRecorder
 
-def _save_model_atomic(model, path: Path) -> None:
+def _save_model_atomic(model, path: Path, notes: dict | None = None) -> None:
     with atomic_path(path) as temporary:
         model.save(temporary)
+        if notes:
+            from clonedrive.drivers.driving_settings import write_notes
+
+            write_notes(temporary, notes)
 
 
 def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool = False

@@ -30,7 +30,8 @@ def build(ctx: ReportContext) -> list:
         "figure below is computed from the files of the run. Steering is in [-1, 1] "
         f"(wheel angle / {MAX_WHEEL_ANGLE_DEG:g}°, + = right); CTE is the car's distance from "
         "the centre line (+ = right of it).")]
-    headline = ctx.facts.get("headline", [])
+    headline = ([ctx.facts["lead"]] if ctx.facts.get("lead") else []) \
+        + list(ctx.facts.get("headline", []))
     if headline:
         blocks += [Paragraph("**In short:**"), Bullets(tuple(headline))]
     if ctx.left_out:

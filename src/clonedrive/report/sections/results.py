@@ -11,6 +11,7 @@ from clonedrive.report import formatting as fmt
 from clonedrive.report.context import SECTION_TITLES, ReportContext, copy_figure, figure_name
 from clonedrive.report.document import Figure, Gallery, Paragraph, Section, Table
 from clonedrive.report.sections.failures import failure_analysis
+from clonedrive.report.sections.recipe import lead, recipe_blocks
 from clonedrive.udacity_spec import CONTROL_HZ
 
 
@@ -39,6 +40,8 @@ def build(ctx: ReportContext) -> list[Section]:
         "(lower is smoother)."
         + (f" Model: `{model}`." if model else "")))
     section.blocks.append(_results_table(ctx, runs, report.get("totals") or {}))
+    ctx.facts["lead"] = lead(runs)
+    section.blocks += recipe_blocks(ctx, runs)
     if any(run.get("timed_out") for run in runs):
         section.blocks.append(Paragraph(
             "† stopped at the time limit before the target laps were driven."))

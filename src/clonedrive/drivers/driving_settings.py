@@ -1,0 +1,224 @@
+"""How a model wants to be driven, stored inside its own file.
+
+A trained model knows what stands between it and the wheel: the hand-made curve rule, a
+low-pass, the hold, mirror averaging (:class:`DrivingSettings`); whether it has a speed head and
+what it crops are in the network itself. ``clonedrive train`` writes the settings of its recipe
+into the model file, so copying the one file keeps them:
+
+- ``.keras`` (a zip archive): a member ``clonedrive.json`` beside Keras's own, which Keras
+  ignores when it loads the model;
+- ``.h5``: an attribute ``clonedrive`` on the file's root group, which Keras ignores too;
+- ``.onnx`` (``clonedrive export``): a ``clonedrive`` entry of the model's metadata.
+
+Both hold ``{"driving": {...}, "recipe": {"name": ..., "version": ...}}``. A file without them (a
+student's model, an old clonedrive model) drives with :class:`DrivingSettings`' defaults, which
+are Udacity's ``drive.py``: none of these, steering passed straight to the wheel.
+:func:`clonedrive.drivers.network.load_policy` reads them; options a command is given override
+them one by one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import shutil
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+#: The zip member of a ``.keras`` file holding the notes.
+KERAS_MEMBER = "clonedrive.json"
+#: The root attribute of an ``.h5`` file holding the notes.
+H5_ATTRIBUTE = "clonedrive"
+#: Notes larger than this are refused (they are a few hundred bytes).
+MAX_NOTES_BYTES = 65_536
+
+
+@dataclass(frozen=True)
+class DrivingSettings:
+    """What stands between the network's prediction and the controls (defaults: drive.py)."""
+
+    #: the hand-made curve rule: the target speed falls as the predicted steering grows
+    slow_in_curves: bool = False
+    steering_filter_s: float = 0.0  #: low-pass time constant on the predicted steering [s]
+    steering_hold: float = 0.0  #: hold the wheel through steering jitter smaller than this
+    mirror_average: bool = False  #: average each frame's prediction with its mirror image's
+
+    def __post_init__(self) -> None:
+        for name in ("slow_in_curves", "mirror_average"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for name in ("steering_filter_s", "steering_hold"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) \
+                    or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+        if self.steering_hold >= 1.0:
+            raise ValueError(f"steering_hold must be below 1 (steering units), got "
+                             f"{self.steering_hold}")
+
+    def options(self) -> dict:
+        """These settings as NetworkPolicy's keyword arguments."""
+        return dataclasses.asdict(self)
+
+    def describe(self) -> str:
+        """One line for people: what is on."""
+        parts = []
+        if self.mirror_average:
+            parts.append("mirror averaging")
+        if self.steering_hold:
+            parts.append(f"steering hold {self.steering_hold:g}")
+        if self.steering_filter_s:
+            parts.append(f"steering low-pass {self.steering_filter_s:g} s")
+        if self.slow_in_curves:
+            parts.append("slower in curves (the hand-made rule)")
+        return ", ".join(parts) or "steering straight to the wheel (as drive.py)"
+
+    @classmethod
+    def from_dict(cls, values: dict, source: str) -> DrivingSettings:
+        """Settings from a table; unknown keys and bad values are errors naming ``source``."""
+        known = {field.name for field in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"{source}: unknown driving setting(s) {', '.join(unknown)}; "
+                             f"expected {', '.join(sorted(known))}")
+        try:
+            return cls(**values)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{source}: {error}") from None
+
+
+def read_notes(path: str | os.PathLike) -> dict:
+    """The clonedrive notes stored in the model file at ``path`` (``{}`` if it has none, or is
+    neither a ``.keras`` nor an ``.h5`` file). ``ValueError`` naming the file if they are
+    unreadable."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".keras":
+        text = _keras_notes(path)
+    elif suffix in (".h5", ".hdf5"):
+        text = _h5_notes(path)
+    elif suffix == ".onnx":
+        text = _onnx_notes(path)
+    else:
+        return {}
+    if text is None:
+        return {}
+    try:
+        notes = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path}: its clonedrive notes are not valid JSON ({error})") from None
+    if not isinstance(notes, dict):
+        raise ValueError(f"{path}: its clonedrive notes are not a JSON object")
+    return notes
+
+
+def stored_settings(path: str | os.PathLike) -> DrivingSettings | None:
+    """The driving settings stored in the model file at ``path``, or None if it has none."""
+    driving = read_notes(path).get("driving")
+    if driving is None:
+        return None
+    if not isinstance(driving, dict):
+        raise ValueError(f"{path}: its driving settings are not a table")
+    return DrivingSettings.from_dict(driving, f"{path}: driving settings")
+
+
+def notes_for(settings: DrivingSettings, recipe: dict | None = None) -> dict:
+    """The notes a model file carries: its driving settings and the recipe that made it."""
+    notes: dict = {"driving": settings.options()}
+    if recipe:
+        notes["recipe"] = dict(recipe)
+    return notes
+
+
+def write_notes(path: str | os.PathLike, notes: dict) -> None:
+    """Store ``notes`` in the model file at ``path`` (``.keras`` or ``.h5``), replacing any
+    there. The ``.keras`` archive is rewritten beside itself and renamed into place."""
+    path = Path(path)
+    text = json.dumps(notes, sort_keys=True)
+    suffix = path.suffix.lower()
+    if suffix == ".keras":
+        _write_keras_notes(path, text)
+    elif suffix in (".h5", ".hdf5"):
+        import h5py
+
+        with h5py.File(path, "a") as file:
+            file.attrs[H5_ATTRIBUTE] = text
+    elif suffix == ".onnx":
+        import onnx
+
+        model = onnx.load(str(path))
+        kept = [entry for entry in model.metadata_props if entry.key != H5_ATTRIBUTE]
+        del model.metadata_props[:]
+        model.metadata_props.extend(kept)
+        entry = model.metadata_props.add()
+        entry.key, entry.value = H5_ATTRIBUTE, text
+        onnx.save(model, str(path))
+    else:
+        raise ValueError(f"{path}: driving settings are stored in .keras, .h5 or .onnx files "
+                         "only")
+
+
+def _keras_notes(path: Path) -> str | None:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            try:
+                info = archive.getinfo(KERAS_MEMBER)
+            except KeyError:
+                return None
+            if info.file_size > MAX_NOTES_BYTES:
+                raise ValueError(f"{path}: its {KERAS_MEMBER} is {info.file_size} bytes, over "
+                                 f"the {MAX_NOTES_BYTES} allowed")
+            return archive.read(info).decode("utf-8", errors="replace")
+    except zipfile.BadZipFile:
+        return None  # not a zip: the model loader says what is wrong with it
+
+
+def _h5_notes(path: Path) -> str | None:
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as file:
+            value = file.attrs.get(H5_ATTRIBUTE)
+    except OSError:
+        return None  # not HDF5: the model loader says what is wrong with it
+    if value is None:
+        return None
+    text = value.decode("utf-8", errors="replace") if isinstance(value, bytes) else str(value)
+    if len(text) > MAX_NOTES_BYTES:
+        raise ValueError(f"{path}: its clonedrive notes are over {MAX_NOTES_BYTES} bytes")
+    return text
+
+
+def _onnx_notes(path: Path) -> str | None:
+    try:
+        import onnx
+    except ImportError:  # the onnx extra is not installed: nothing can run the file anyway
+        return None
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception:  # noqa: BLE001 - not ONNX: the model loader says what is wrong with it
+        return None
+    for entry in model.metadata_props:
+        if entry.key == H5_ATTRIBUTE:
+            if len(entry.value) > MAX_NOTES_BYTES:
+                raise ValueError(f"{path}: its clonedrive notes are over {MAX_NOTES_BYTES} "
+                                 "bytes")
+            return entry.value
+    return None
+
+
+def _write_keras_notes(path: Path, text: str) -> None:
+    temporary = path.with_name(f".{path.name}.notes.tmp")
+    try:
+        with zipfile.ZipFile(path) as source, zipfile.ZipFile(temporary, "w") as target:
+            for info in source.infolist():
+                if info.filename != KERAS_MEMBER:
+                    with source.open(info) as member, target.open(info, "w") as copy:
+                        shutil.copyfileobj(member, copy)
+            target.writestr(KERAS_MEMBER, text)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)

@@ -1,0 +1,83 @@
+"""``clonedrive train`` takes its settings from a recipe (best by default), writes the recipe's
+driving settings into every model file, and ``evaluate`` drives the model with them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.cli import main
+from clonedrive.drivers.driving_settings import DrivingSettings, read_notes, stored_settings
+
+LAKE = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "lake_posix_mixed_columns"
+
+
+@pytest.fixture(scope="module")
+def best_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("train") / "best"
+    assert main(["train", str(LAKE), "--epochs", "1", "--batch-size", "64", "--out", str(out),
+                 "--json"]) == 0
+    return out
+
+
+def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path):
+    config = json.loads((best_run / "config.json").read_text())
+    assert config["speed_head"] is True and config["crop_top_px"] == 60
+    assert config["correction"] == 0.054 and config["balance"] is False
+    notes = read_notes(best_run / "model.keras")
+    assert notes["recipe"]["name"] == "best"
+    assert stored_settings(best_run / "model.keras") == DrivingSettings(
+        mirror_average=True, steering_hold=0.02)
+    assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
+
+
+def test_model_h5_has_one_output_for_udacitys_drive_py(best_run: Path):
+    """drive.py calls ``float(model.predict(image[None], batch_size=1))``: one output."""
+    from clonedrive.keras_backend import import_keras
+
+    keras = import_keras()
+    model = keras.saving.load_model(best_run / "model.h5", compile=False)
+    prediction = model.predict(np.zeros((1, 160, 320, 3), np.float32), batch_size=1, verbose=0)
+    assert np.asarray(prediction).shape == (1, 1)
+    assert isinstance(float(np.asarray(prediction)[0, 0]), float)
+    assert stored_settings(best_run / "model.h5").mirror_average is True
+
+
+def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tmp_path: Path):
+    out = tmp_path / "eval"
+    assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--speed", "30",
+                 "--laps", "1", "--max-seconds", "2", "--no-scenery", "--workers", "1",
+                 "--out", str(out), "--json"]) == 0
+    header = json.loads((out / "eval.json").read_text())
+    assert header["mirror_average"] is True and header["steering_hold"] == 0.02
+    assert header["speed_head"] is True and header["slow_in_curves"] is False
+    assert header["recipe"] == {"name": "best", "version": 1}
+    # Options given override the file one by one.
+    out = tmp_path / "eval2"
+    assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",
+                 "--max-seconds", "2", "--no-scenery", "--workers", "1", "--out", str(out),
+                 "--no-mirror-average", "--slow-in-curves", "--json"]) == 0
+    header = json.loads((out / "eval.json").read_text())
+    assert header["mirror_average"] is False and header["steering_hold"] == 0.02
+    assert header["slow_in_curves"] is True
+
+
+def test_train_with_the_writeup_recipe(tmp_path: Path):
+    out = tmp_path / "writeup"
+    assert main(["train", str(LAKE), "--recipe", "writeup", "--epochs", "1", "--no-h5",
+                 "--out", str(out), "--json"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["speed_head"] is False and config["crop_top_px"] == 80
+    assert config["correction"] == 0.2 and config["batch_size"] == 128
+    assert stored_settings(out / "model.keras") == DrivingSettings(slow_in_curves=True)
+
+
+def test_a_recipe_that_records_its_data_needs_a_data_folder(tmp_path: Path, capsys):
+    assert main(["train", "--recipe", "best", "--out", str(tmp_path / "x")]) == 1
+    assert "--data FOLDER" in capsys.readouterr().err
+    assert main(["train", "--recipe", "best", "--data", str(tmp_path / "nowhere"),
+                 "--out", str(tmp_path / "y")]) == 1
+    assert "no such folder" in capsys.readouterr().err

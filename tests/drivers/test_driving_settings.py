@@ -1,0 +1,98 @@
+"""A model file carries how it is to be driven; commands use it unless told otherwise."""
+
+from __future__ import annotations
+
+import shutil
+import zipfile
+
+import numpy as np
+import pytest
+
+from clonedrive.drivers.driving_settings import (
+    KERAS_MEMBER,
+    MAX_NOTES_BYTES,
+    DrivingSettings,
+    notes_for,
+    read_notes,
+    stored_settings,
+    write_notes,
+)
+from clonedrive.drivers.network import load_policy
+from clonedrive.udacity_spec import IMAGE_SHAPE
+
+CALM = DrivingSettings(steering_hold=0.02, mirror_average=True)
+
+
+def _copy(source, tmp_path, name):
+    target = tmp_path / name
+    shutil.copy(source, target)
+    return target
+
+
+@pytest.mark.parametrize("kind", ["keras", "h5"])
+def test_settings_survive_in_the_one_file_and_the_model_still_loads(
+        kind, tiny_model_path, tiny_h5_path, tmp_path):
+    source = tiny_model_path if kind == "keras" else tiny_h5_path
+    path = _copy(source, tmp_path, f"m.{kind}")
+    assert stored_settings(path) is None  # a file without notes: drive.py's defaults
+    write_notes(path, notes_for(CALM, {"name": "best", "version": 3}))
+    (tmp_path / "elsewhere").mkdir()
+    copied = _copy(path, tmp_path / "elsewhere", f"copy.{kind}")
+    assert stored_settings(copied) == CALM
+    assert read_notes(copied)["recipe"] == {"name": "best", "version": 3}
+    policy = load_policy(copied)
+    assert policy.driving_settings() == CALM
+    assert policy.notes["recipe"]["name"] == "best"
+
+
+def test_notes_are_replaced_not_duplicated(tiny_model_path, tmp_path):
+    path = _copy(tiny_model_path, tmp_path, "m.keras")
+    write_notes(path, notes_for(CALM))
+    write_notes(path, notes_for(DrivingSettings(slow_in_curves=True)))
+    with zipfile.ZipFile(path) as archive:
+        assert [info.filename for info in archive.infolist()].count(KERAS_MEMBER) == 1
+    assert stored_settings(path) == DrivingSettings(slow_in_curves=True)
+
+
+def test_options_given_override_the_file_one_by_one(tiny_model_path, tmp_path):
+    path = _copy(tiny_model_path, tmp_path, "m.keras")
+    write_notes(path, notes_for(CALM))
+    policy = load_policy(path, mirror_average=False, steering_hold=None)
+    assert policy.mirror_average is False
+    assert policy.steering_hold == 0.02  # None leaves the file's setting
+
+
+def test_a_model_without_notes_drives_as_drive_py(tiny_model_path):
+    policy = load_policy(tiny_model_path)
+    assert policy.driving_settings() == DrivingSettings()
+    assert policy.notes == {}
+    frame = np.full((1, *IMAGE_SHAPE), 100, dtype=np.uint8)
+    assert policy.predict_steering(frame).shape == (1,)
+
+
+@pytest.mark.parametrize("notes, message", [
+    ("not json", "not valid JSON"),
+    ('["a list"]', "not a JSON object"),
+    ('{"driving": {"steering_hold": -1}}', "steering_hold"),
+    ('{"driving": {"warp_speed": true}}', "warp_speed"),
+    ("x" * (MAX_NOTES_BYTES + 1), "over"),
+])
+def test_bad_notes_are_refused_naming_the_file(notes, message, tiny_model_path, tmp_path):
+    path = _copy(tiny_model_path, tmp_path, "bad.keras")
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr(KERAS_MEMBER, notes)
+    with pytest.raises(ValueError, match=message) as caught:
+        load_policy(path)
+    assert "bad.keras" in str(caught.value)
+
+
+@pytest.mark.parametrize("values", [{"steering_hold": 1.5}, {"mirror_average": "yes"},
+                                    {"steering_filter_s": float("nan")}])
+def test_bad_settings_are_refused(values):
+    with pytest.raises(ValueError):
+        DrivingSettings(**values)
+
+
+def test_describe_names_what_is_on():
+    assert "mirror averaging" in CALM.describe() and "hold 0.02" in CALM.describe()
+    assert "drive.py" in DrivingSettings().describe()

@@ -1,0 +1,120 @@
+"""Whole recipes: the built-in ones load, a copied and edited one works, bad ones are refused
+naming the file and the key."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import pytest
+
+from clonedrive.demo import DemoConfig, demo_plan
+from clonedrive.drivers.driving_settings import DrivingSettings
+from clonedrive.recipes.book import (
+    BUILT_IN,
+    DEFAULT_RECIPE,
+    is_whole_recipe,
+    load_recipe_file,
+)
+
+
+def _text(name: str) -> str:
+    return resources.files("clonedrive.recipes").joinpath(f"{name}.toml").read_text("utf-8")
+
+
+@pytest.mark.parametrize("name", BUILT_IN)
+def test_built_in_recipes_load_with_every_part(name):
+    recipe = load_recipe_file(name)
+    assert recipe.name == name and recipe.version >= 1
+    assert recipe.recordings and recipe.evaluation
+    config = recipe.train_config()
+    assert config.model == "fast"
+    assert recipe.notes()["recipe"] == {"name": name, "version": recipe.version}
+
+
+def test_best_is_the_default_and_drives_without_the_curve_rule():
+    best = load_recipe_file(DEFAULT_RECIPE)
+    assert DEFAULT_RECIPE == "best" and DemoConfig().recipe == "best"
+    assert best.train_config().speed_head
+    assert best.driving.slow_in_curves is False
+    _, _, groups = demo_plan(DemoConfig())
+    speeds = {speed for group in groups for speed in group.speeds_mph}
+    assert 30.0 in speeds
+    assert [group.unseen_speed_mph for group in groups if group.unseen] == [30.0]
+
+
+def test_writeup_is_todays_demo():
+    recipe = load_recipe_file("writeup")
+    assert recipe.driving == DrivingSettings(slow_in_curves=True)
+    config = recipe.train_config()
+    assert (config.epochs, config.learning_rate, config.batch_size, config.crop_top_px,
+            config.speed_head, config.balance) == (8, 1e-3, 128, 80, False, True)
+    names = [spec.name for spec in recipe.recordings]
+    assert names == ["middle", "left", "right", "turns", "mountain", "mountain_reverse",
+                     "mountain_turns", "hairpin"]
+    specs = {spec.name: spec for spec in recipe.data_recipe("data").recordings}
+    assert specs["left"].steering_offset == 0.25 and specs["right"].steering_offset == -0.25
+    assert specs["left"].cameras == "center" and specs["middle"].cameras == "all"
+    assert all(specs[name].steering_offset == 0.0 for name in ("middle", "turns", "hairpin"))
+    assert all(spec.flip and spec.correction == 0.2 for spec in specs.values())
+
+
+def test_a_copied_and_edited_recipe_is_used(tmp_path):
+    text = _text("best").replace('name = "best"', 'name = "mine"').replace(
+        "epochs = 5", "epochs = 2").replace("steering_hold = 0.02", "steering_hold = 0.01")
+    path = tmp_path / "mine.toml"
+    path.write_text(text, encoding="utf-8")
+    assert is_whole_recipe(path)
+    recipe = load_recipe_file(path)
+    assert recipe.label() == "mine v1"
+    assert recipe.train_config().epochs == 2
+    assert recipe.driving.steering_hold == 0.01
+    _, train, _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
+    assert train.epochs == 3  # the demo's option overrides the file
+
+
+def test_data_recipes_are_not_whole_recipes(tmp_path):
+    path = tmp_path / "data.toml"
+    path.write_text('[[recording]]\npath = "x"\n', encoding="utf-8")
+    assert not is_whole_recipe(path)
+    assert not is_whole_recipe(tmp_path / "missing.toml")
+
+
+def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
+    recipe = load_recipe_file("writeup")
+    data = recipe.data_recipe(tmp_path)
+    assert [spec.path for spec in data.recordings][0] == tmp_path / "middle"
+    assert data.recordings[1].steering_offset == 0.25
+    with pytest.raises(ValueError, match="--data FOLDER"):
+        recipe.data_recipe_without_data()
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("[train]", "[train]\nwarp = 9"), "warp"),
+    (("steering_hold = 0.02", "steering_hold = 2.0"), "steering_hold"),
+    (('name = "best"', 'name = ""'), "needs a name"),
+    (("version = 1", "version = 0"), "version"),
+    (("laps = 3", "laps = 0"), "laps"),
+    (('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
+    (("correction = 0.054", "correction = 7"), "correction"),
+    (("speeds_mph = [15, 30]", "speeds_mph = [15, 300]"), "evaluate"),
+    (("[recipe]", "[recipes]"), "recipes"),
+    (("[[recording]]", "[[recording]]\npath = 'x'"), "path and recording settings"),
+])
+def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, edit, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(_text("best").replace(*edit, 1), encoding="utf-8")
+    with pytest.raises(ValueError, match=message) as caught:
+        load_recipe_file(path)
+    assert "bad.toml" in str(caught.value)
+
+
+def test_unknown_recipe_names_the_built_in_ones():
+    with pytest.raises(FileNotFoundError, match="best, writeup"):
+        load_recipe_file("bestest")
+
+
+def test_not_toml_is_refused(tmp_path):
+    path = tmp_path / "x.toml"
+    path.write_text("[recipe\nname=", encoding="utf-8")
+    with pytest.raises(ValueError, match="not valid TOML"):
+        load_recipe_file(path)

@@ -64,3 +64,38 @@ def test_demo_options_override_the_recipe():
     assert (train.epochs, train.model, train.seed) == (2, "seed", 4)
     assert [g.unseen for g in groups if g.unseen] == [3]
     assert not any(g.video for g in groups)
+
+
+def test_a_run_folder_of_another_recipe_is_refused_not_reused(tmp_path, capsys):
+    """The demo reuses finished stages; a folder holding another recipe's stages must not pass
+    for this recipe's."""
+    from clonedrive.demo import RECORDING_SPEC_FILE
+
+    out = tmp_path / "demo"
+    middle = out / "data" / "middle"
+    middle.mkdir(parents=True)
+    (middle / "driving_log.csv").write_text("")
+    (middle / RECORDING_SPEC_FILE).write_text('{"name": "middle", "laps": 99}')
+    assert main(["demo", "--out", str(out), "--no-video"]) == 1
+    assert "recorded with other settings" in capsys.readouterr().err
+
+
+def test_a_model_of_another_recipe_is_refused(tmp_path, tiny_model_path):
+    import shutil
+
+    from clonedrive.demo import DemoFolderError, _check_same_recipe
+    from clonedrive.drivers.driving_settings import DrivingSettings, notes_for, write_notes
+    from clonedrive.recipes.book import load_recipe_file
+
+    train_dir = tmp_path / "train"
+    train_dir.mkdir()
+    shutil.copy(tiny_model_path, train_dir / "model.keras")
+    best = load_recipe_file("best")
+    with pytest.raises(DemoFolderError, match="no recipe"):
+        _check_same_recipe(train_dir, best)
+    write_notes(train_dir / "model.keras",
+                notes_for(DrivingSettings(slow_in_curves=True), {"name": "writeup", "version": 1}))
+    with pytest.raises(DemoFolderError, match="writeup v1, not best v1"):
+        _check_same_recipe(train_dir, best)
+    write_notes(train_dir / "model.keras", best.notes())
+    _check_same_recipe(train_dir, best)  # its own recipe: reused

@@ -19,12 +19,13 @@ stopped.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from clonedrive.config import save_config, write_json_atomic, write_text_atomic
-from clonedrive.recipes.book import DEFAULT_RECIPE, RecipeFile, load_recipe_file
+from clonedrive.recipes.book import DEFAULT_RECIPE, RecipeFile, RecordSpec, load_recipe_file
 
 #: Where ``clonedrive demo`` writes its run by default.
 DEFAULT_RUN_DIR = "runs/demo"
@@ -33,6 +34,14 @@ DEMO_MODELS = ("fast", "seed", "pilotnet")
 #: --quick: the recipe's first recording, this long [s], trained this many epochs.
 QUICK_SECONDS = 20.0
 QUICK_EPOCHS = 2
+
+
+#: Beside each recording: the recipe's spec it was recorded from (a reused folder must match).
+RECORDING_SPEC_FILE = "recipe_recording.json"
+
+
+class DemoFolderError(ValueError):
+    """The run folder holds stages of another recipe, which the demo would otherwise reuse."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +112,7 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
     for index, spec in enumerate(recordings):
         out = data_dir / spec.name
         if (out / "driving_log.csv").is_file():
+            _check_same_recording(out, spec, seed + index)
             rows = len(read_driving_log(out, verify_images="none").rows)
             if rows > 0:
                 _say(progress, f"[record] {spec.name}: {rows} rows already recorded, reused")
@@ -117,7 +127,7 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
                                      seed=seed + index, start_time="2026-01-01T12:00:00",
                                      **options)
         tasks.append({"index": index, "name": spec.name, "config": record_config,
-                      "out": str(out)})
+                      "out": str(out), "spec": _spec_record(spec, seed + index)})
     workers = workers or default_workers()
     if tasks:
         _say(progress, f"[record] {len(tasks)} recording(s) on {min(workers, len(tasks))} "
@@ -136,11 +146,25 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
     return [done[index] for index in sorted(done)]
 
 
+def _spec_record(spec: RecordSpec, seed: int) -> dict:
+    return {**dataclasses.asdict(spec), "seed": seed}
+
+
+def _check_same_recording(folder: Path, spec: RecordSpec, seed: int) -> None:
+    """:class:`DemoFolderError` if ``folder`` was recorded from another recipe's spec (a
+    folder recorded before specs were kept is taken as it is)."""
+    path = folder / RECORDING_SPEC_FILE
+    if path.is_file() and _read_json(path) != _spec_record(spec, seed):
+        raise DemoFolderError(f"{folder} was recorded with other settings than this recipe's "
+                              f"{spec.name!r} ({path}): give the demo another --out")
+
+
 def _record_task(task: dict) -> dict:
     """One recording of the demo (in a worker process of :mod:`clonedrive.workers`)."""
     from clonedrive.data.recorder import record
 
     summary = record(task["config"], task["out"], progress=False)
+    write_json_atomic(Path(task["out"]) / RECORDING_SPEC_FILE, task["spec"])
     return {"index": task["index"], "name": task["name"], "rows": summary.rows,
             "off_road_events": summary.off_road_events, "reused": False}
 
@@ -172,6 +196,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     data = recipe.data_recipe(out / "data")
     if config.quick:  # only the first recording was recorded
         data = replace(data, recordings=data.recordings[:1])
+    _check_same_recipe(out / "train", recipe)
     _train_stage(train_config, data, out / "train", recipe.notes(), progress)
     stage("train", time.perf_counter() - t0, model=train_config.model,
           epochs=train_config.epochs)
@@ -187,6 +212,22 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     summary["total_seconds"] = round(time.perf_counter() - started, 1)
     write_json_atomic(out / "demo.json", summary)
     return summary
+
+
+def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
+    """A run folder holds one recipe's model: :class:`DemoFolderError` if the model already
+    there (to be reused or resumed) was made with another recipe or version."""
+    from clonedrive.drivers.driving_settings import read_notes
+
+    for name in ("model.keras", "last.keras"):
+        if (train_dir / name).is_file():
+            made_with = read_notes(train_dir / name).get("recipe")
+            if made_with != recipe.identity():
+                found = (f"{made_with.get('name')} v{made_with.get('version')}"
+                         if isinstance(made_with, dict) else "no recipe")
+                raise DemoFolderError(
+                    f"{train_dir / name} was trained with {found}, not {recipe.label()}: give "
+                    "the demo another --out, or remove that training folder")
 
 
 def _train_stage(train_config, data, train_dir: Path, notes: dict, progress: bool) -> None:

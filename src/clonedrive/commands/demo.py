@@ -68,8 +68,14 @@ def run(args) -> int:
     lock = claim("demo", args.out)
     if lock is None:
         return 1
+    from clonedrive.demo import DemoFolderError
+
     with lock:
-        summary = run_demo(config, args.out)
+        try:
+            summary = run_demo(config, args.out)
+        except DemoFolderError as error:
+            print(f"clonedrive demo: {error}", file=sys.stderr)
+            return 1
     stages = ", ".join(f"{name} {stage['seconds']:.0f} s"
                        for name, stage in summary["stages"].items())
     print(f"demo finished in {summary['total_seconds']:.0f} s ({stages})")

@@ -42,10 +42,12 @@ def test_the_full_demo_plans_valid_stages(recipe):
 
     from clonedrive.demo import DemoConfig, demo_plan
 
-    recordings, train, groups = demo_plan(DemoConfig(recipe=recipe))
+    recordings, stages, groups = demo_plan(DemoConfig(recipe=recipe))
+    train = stages[0]
     assert all(replace(g) == g for g in groups)
     if recipe == "writeup":  # today's demo, unchanged
         assert len(recordings) == 8 and train.epochs == 8 and not train.speed_head
+        assert len(stages) == 1
         assert [(g.tracks, g.speeds_mph, g.unseen, g.laps) for g in groups] == [
             (("lake",), (15.0, 30.0), 0, 2), (("mountain",), (15.0, 25.0), 0, 1),
             ((), (20.0,), 10, 1)]
@@ -59,8 +61,8 @@ def test_the_full_demo_plans_valid_stages(recipe):
 def test_demo_options_override_the_recipe():
     from clonedrive.demo import DemoConfig, demo_plan
 
-    _, train, groups = demo_plan(DemoConfig(epochs=2, unseen=3, model="seed", video=False,
-                                            seed=4))
+    _, (train, *_), groups = demo_plan(DemoConfig(epochs=2, unseen=3, model="seed",
+                                                  video=False, seed=4))
     assert (train.epochs, train.model, train.seed) == (2, "seed", 4)
     assert [g.unseen for g in groups if g.unseen] == [3]
     assert not any(g.video for g in groups)

@@ -4,8 +4,9 @@
 ``best`` unless ``DemoConfig.recipe`` names another or a file):
 
 1. records the recipe's recordings with the expert into ``runs/demo/data/<name>/``;
-2. trains on them with the recipe's settings (``runs/demo/train/``); the model file carries the
-   recipe's driving settings and its name and version;
+2. trains on them with the recipe's settings (``runs/demo/train/``, a first stage in
+   ``train/base/`` where the recipe fine-tunes; see :mod:`clonedrive.recipes.training`); the
+   model file carries the recipe's driving settings and its name and version;
 3. evaluates in closed loop (``runs/demo/eval/``) the recipe's groups of runs, driving the
    model with its own settings, with videos for the built-in tracks;
 4. writes ``report.md`` / ``report.html``.
@@ -26,6 +27,7 @@ from pathlib import Path
 
 from clonedrive.config import save_config, write_json_atomic, write_text_atomic
 from clonedrive.recipes.book import DEFAULT_RECIPE, RecipeFile, RecordSpec, load_recipe_file
+from clonedrive.recipes.training import run_stages, stage_dirs, train_stages
 
 #: Where ``clonedrive demo`` writes its run by default.
 DEFAULT_RUN_DIR = "runs/demo"
@@ -69,7 +71,8 @@ class DemoConfig:
 
 
 def demo_plan(config: DemoConfig, recipe: RecipeFile | None = None):
-    """(recordings, TrainConfig, [EvalConfig per group]) the demo runs for ``config``."""
+    """(recordings, [TrainConfig per training stage], [EvalConfig per group]) the demo runs
+    for ``config`` (recipes.training: one stage, or a start and a fine-tune)."""
     from clonedrive.evaluate.rollout import EvalConfig
 
     recipe = recipe or load_recipe_file(config.recipe)
@@ -79,15 +82,15 @@ def demo_plan(config: DemoConfig, recipe: RecipeFile | None = None):
     if config.quick:
         first = recipe.recordings[0]
         recordings = (replace(first, laps=1, seconds=QUICK_SECONDS),)
-        train = recipe.train_config(**overrides, epochs=config.epochs or QUICK_EPOCHS,
-                                    batch_size=64)
+        train = train_stages(recipe, **overrides, epochs=config.epochs or QUICK_EPOCHS,
+                             batch_size=64)
         groups = [EvalConfig(tracks=("lake",), speeds_mph=(15.0,), laps=1,
                              unseen=config.unseen or 0, video=config.video, max_seconds=10.0,
                              workers=config.workers)]
         return recordings, train, groups
     if config.epochs is not None:
         overrides["epochs"] = config.epochs
-    train = recipe.train_config(**overrides)
+    train = train_stages(recipe, **overrides)
     groups = []
     for values in recipe.evaluation:
         group = EvalConfig(**values)
@@ -178,7 +181,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     recipe = load_recipe_file(config.recipe)
     save_config(config, out / "config.json")
     write_text_atomic(out / "recipe.toml", recipe.text)
-    recordings, train_config, groups = demo_plan(config, recipe)
+    recordings, stages, groups = demo_plan(config, recipe)
     summary: dict = {"config": config.__dict__, "recipe": recipe.identity(), "stages": {}}
     started = time.perf_counter()
 
@@ -196,10 +199,11 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     data = recipe.data_recipe(out / "data")
     if config.quick:  # only the first recording was recorded
         data = replace(data, recordings=data.recordings[:1])
-    _check_same_recipe(out / "train", recipe)
-    _train_stage(train_config, data, out / "train", recipe.notes(), progress)
-    stage("train", time.perf_counter() - t0, model=train_config.model,
-          epochs=train_config.epochs)
+    for folder in stage_dirs(out / "train", len(stages)):
+        _check_same_recipe(folder, recipe)
+    run_stages(stages, data, out / "train", notes=recipe.notes(), progress=progress)
+    stage("train", time.perf_counter() - t0, model=stages[0].model,
+          epochs=[config.epochs for config in stages])
 
     t0 = time.perf_counter()
     report = _evaluate_stage(out, groups, progress)
@@ -228,20 +232,6 @@ def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
                 raise DemoFolderError(
                     f"{train_dir / name} was trained with {found}, not {recipe.label()}: give "
                     "the demo another --out, or remove that training folder")
-
-
-def _train_stage(train_config, data, train_dir: Path, notes: dict, progress: bool) -> None:
-    """Train (or continue an interrupted training) unless a finished model is there."""
-    from clonedrive.model.train import train
-
-    resume = False
-    if (train_dir / "model.keras").is_file() and (train_dir / "state.json").is_file():
-        resume = _read_json(train_dir / "state.json").get("epochs_done", 0) < train_config.epochs
-    if (train_dir / "model.keras").is_file() and not resume:
-        _say(progress, "[train] model already trained, reused")
-        return
-    _say(progress, f"[train] {train_config.model} for {train_config.epochs} epochs")
-    train(train_config, data, train_dir, resume=resume, progress=progress, notes=notes)
 
 
 def _evaluate_stage(out: Path, groups, progress: bool) -> dict:

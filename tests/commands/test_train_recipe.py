@@ -81,3 +81,28 @@ def test_a_recipe_that_records_its_data_needs_a_data_folder(tmp_path: Path, caps
     assert main(["train", "--recipe", "best", "--data", str(tmp_path / "nowhere"),
                  "--out", str(tmp_path / "y")]) == 1
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
+    """[finetune] is a second stage from the first one's best model; OUT/model.keras is it."""
+    from importlib import resources
+
+    text = resources.files("clonedrive.recipes").joinpath("best.toml").read_text("utf-8")
+    text = text.replace('name = "best"', 'name = "staged"')
+    if "[finetune]" not in text:
+        text = text.replace("[drive]", "[finetune]\nepochs = 1\nlearning_rate = 0.0003\n"
+                                       "consistency = 10\n\n[drive]")
+    recipe = tmp_path / "staged.toml"
+    recipe.write_text(text, encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["train", str(LAKE), "--recipe", str(recipe), "--epochs", "1",
+                 "--batch-size", "64", "--no-h5", "--out", str(out), "--json"]) == 0
+    base = json.loads((out / "base" / "config.json").read_text())
+    final = json.loads((out / "config.json").read_text())
+    assert base["epochs"] == 1 and base["consistency"] == 0
+    assert final["init_from"] == str(out / "base" / "model.keras")
+    assert final["consistency"] > 0 and final["learning_rate"] < base["learning_rate"]
+    assert read_notes(out / "model.keras")["recipe"]["name"] == "staged"
+    # Training again into the same folder is refused, as for one stage.
+    assert main(["train", str(LAKE), "--recipe", str(recipe), "--epochs", "1",
+                 "--out", str(out)]) == 1

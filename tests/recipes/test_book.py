@@ -68,7 +68,7 @@ def test_a_copied_and_edited_recipe_is_used(tmp_path):
     assert recipe.label() == "mine v1"
     assert recipe.train_config().epochs == 2
     assert recipe.driving.steering_hold == 0.01
-    _, train, _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
+    _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
     assert train.epochs == 3  # the demo's option overrides the file
 
 

@@ -135,11 +135,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"clonedrive train: {missing}", file=sys.stderr)
         return 1
     from clonedrive.data.output_lock import claim_output
-    from clonedrive.model.train import train
 
     out: Path = args.out
     try:
-        config, source, notes = _plan(args)
+        stages, source, notes = _plan(args)
     except _BadOption as error:  # refused before anything is read
         print(f"clonedrive train: {error}", file=sys.stderr)
         return 2
@@ -149,8 +148,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         inputs = [*args.dirs, *([args.recipe] if _is_file(args.recipe) else [])]
         with claim_output("train", out, inputs=inputs):
-            result = train(config, source, out, resume=args.resume, progress=not args.json,
-                           notes=notes)
+            result = _train(stages, source, out, args, notes)
     except (ValueError, FileNotFoundError, FileExistsError) as error:
         print(f"clonedrive train: {error}", file=sys.stderr)
         return 1
@@ -178,6 +176,26 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(stages: list, source, out: Path, args: argparse.Namespace, notes: dict | None):
+    """One stage as ``train`` always did; a recipe with a fine-tune as two (recipes.training),
+    into a folder that holds no run unless ``--resume``."""
+    from clonedrive.model.train import train
+
+    if len(stages) == 1:
+        return train(stages[0], source, out, resume=args.resume, progress=not args.json,
+                     notes=notes)
+    from clonedrive.recipes.training import run_stages, stage_dirs
+
+    if not args.resume and any((folder / "state.json").exists()
+                               for folder in stage_dirs(out, len(stages))):
+        raise FileExistsError(f"{out} already holds a training run; resume it (--resume) or "
+                              "choose another --out")
+    result = run_stages(stages, source, out, notes=notes, progress=not args.json)
+    if result is None:
+        raise FileExistsError(f"{out}: every stage is already trained")
+    return result
+
+
 class _BadOption(ValueError):
     """An option value TrainConfig refuses (exit status 2, as argparse's own)."""
 
@@ -190,8 +208,9 @@ def _settings(make):
 
 
 def _plan(args: argparse.Namespace):
-    """(TrainConfig, the data, the notes the model files carry) from the command line: the
-    recipe's settings with the options given on top; a resumed run keeps its own."""
+    """([TrainConfig per stage], the data, the notes the model files carry) from the command
+    line: the recipe's settings with the options given on top (on its first stage; a
+    fine-tune's own settings stay); a resumed one-stage run keeps its own."""
     import dataclasses
 
     from clonedrive.model.train import TrainConfig, load_run_config
@@ -201,24 +220,27 @@ def _plan(args: argparse.Namespace):
         source = (Path(args.recipe) if _is_file(args.recipe) and not is_whole_recipe(args.recipe)
                   else None) or (args.dirs or None) or args.out / "recipe.toml"
         base = load_run_config(args.out)
-        return (_settings(lambda: dataclasses.replace(base, **_overrides(args, TrainConfig))),
+        return ([_settings(lambda: dataclasses.replace(base, **_overrides(args, TrainConfig)))],
                 source, None)
     if not args.recipe and not args.dirs:
         raise ValueError("nothing to train on: give DIR [DIR ...], --recipe FILE, or "
                          "--recipe NAME --data FOLDER")
     whole = args.recipe and is_whole_recipe(args.recipe)
     recipe = load_recipe_file(args.recipe if whole else DEFAULT_RECIPE)
-    config = _settings(lambda: recipe.train_config(**_overrides(args, TrainConfig)))
+    from clonedrive.recipes.training import train_stages
+
+    stages = _settings(lambda: train_stages(recipe, **_overrides(args, TrainConfig)))
     if args.dirs:
         if args.recipe and not whole:
             raise ValueError("give either a data recipe file or DIRs, not both")
         source = recipe.folders_recipe(args.dirs, correction=getattr(args, "correction", None))
-        config = dataclasses.replace(config, correction=source.recordings[0].correction)
+        stages = [dataclasses.replace(config, correction=source.recordings[0].correction)
+                  for config in stages]
     elif whole:
         source = recipe.data_recipe(args.data) if args.data else recipe.data_recipe_without_data()
     else:
         source = Path(args.recipe)
-    return config, source, recipe.notes()
+    return stages, source, recipe.notes()
 
 
 def _is_file(recipe: str | None) -> bool:

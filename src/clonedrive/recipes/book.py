@@ -27,6 +27,10 @@ Layout (every table but ``[recipe]`` and ``[[recording]]`` is optional)::
     [train]                  # TrainConfig fields (model.train); left out: TrainConfig's
     model = "fast"
 
+    [finetune]               # a second stage from the first one's model (recipes.training)
+    epochs = 1
+    consistency = 30
+
     [drive]                  # DrivingSettings fields, stored in the trained model's file
     mirror_average = true
 
@@ -64,7 +68,8 @@ DEFAULT_RECIPE = "best"
 #: Recipe files larger than this are refused (they are a few kilobytes).
 MAX_RECIPE_BYTES = 1_000_000
 
-_TOP_KEYS = ("recipe", "defaults", "recording", "train", "drive", "evaluate", "measured")
+_TOP_KEYS = ("recipe", "defaults", "recording", "train", "finetune", "drive", "evaluate",
+             "measured")
 _IDENTITY_KEYS = ("name", "version", "summary", "compare_with")
 
 
@@ -98,6 +103,8 @@ class RecipeFile:
     data_table: dict  #: ``defaults`` and ``recording`` as data.recipe reads them
     base_dir: Path  #: where relative ``path``s are taken from
     train: dict = field(default_factory=dict)  #: TrainConfig fields
+    #: TrainConfig fields of a second stage from the first's model (recipes.training)
+    finetune: dict = field(default_factory=dict)
     driving: DrivingSettings = DrivingSettings()
     evaluation: tuple[dict, ...] = ()  #: EvalConfig fields per group
     measured: dict = field(default_factory=dict)
@@ -220,11 +227,14 @@ def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) ->
     recipe = RecipeFile(
         name=name.strip(), version=version, source=source, text=text,
         recordings=recordings, data_table=data_table, base_dir=Path(base_dir).absolute(),
-        train=_table(data, "train", source), evaluation=_evaluation(data, source),
+        train=_table(data, "train", source), finetune=_table(data, "finetune", source),
+        evaluation=_evaluation(data, source),
         driving=DrivingSettings.from_dict(_table(data, "drive", source), f"{source}: [drive]"),
         measured=_table(data, "measured", source), summary=str(identity.get("summary", "")),
         compare_with=identity.get("compare_with"))
-    recipe.train_config()  # bad training settings fail now, naming the file
+    from clonedrive.recipes.training import train_stages
+
+    train_stages(recipe)  # bad training settings fail now, naming the file
     recipe.data_recipe(Path(base_dir) / "data")  # and bad sample settings
     return recipe
 

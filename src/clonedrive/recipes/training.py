@@ -1,0 +1,80 @@
+"""A recipe's training, in one or two stages.
+
+A recipe's ``[train]`` table is the first stage. An optional ``[finetune]`` table is a second
+stage that starts from the first stage's best model, with ``[finetune]``'s settings over
+``[train]``'s (the lab notes' recipe: a plain start, then a short fine-tune with the
+consistency penalty at a lower learning rate). With two stages the first one's run folder is
+``OUT/base/`` and the second one's ``OUT/`` itself, so ``OUT/model.keras`` is always the model.
+
+A stage whose run folder holds a finished run (``state.json`` with all its epochs) is reused;
+one with fewer epochs done is resumed from its ``last.keras``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+#: Where the first stage of a two-stage recipe trains, inside the training folder.
+BASE_STAGE_DIR = "base"
+
+
+def train_stages(recipe, **overrides) -> list:
+    """The TrainConfig of each stage of ``recipe``: ``[train]`` with ``overrides`` on top,
+    then, if the recipe has one, ``[finetune]`` over that (its ``init_from`` is set when the
+    first stage has run)."""
+    first = recipe.train_config(**overrides)
+    if not recipe.finetune:
+        return [first]
+    try:
+        second = dataclasses.replace(first, **recipe.finetune)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{recipe.source}: [finetune]: {error}") from None
+    return [first, second]
+
+
+def stage_dirs(out_dir: str | Path, count: int) -> list[Path]:
+    """The run folder of each of ``count`` stages trained into ``out_dir``."""
+    out = Path(out_dir)
+    return [out / BASE_STAGE_DIR, out] if count == 2 else [out]
+
+
+def run_stages(stages: list, data, out_dir: str | Path, *, notes: dict | None = None,
+               progress: bool = True):
+    """Train every stage into its folder (:func:`stage_dirs`), each from the one before;
+    reuses finished stages and resumes interrupted ones. Returns the last stage's
+    TrainResult, or None when every stage was already finished."""
+    from clonedrive.model.train import train
+
+    result = None
+    previous: Path | None = None
+    for number, (config, folder) in enumerate(zip(stages, stage_dirs(out_dir, len(stages)),
+                                                  strict=True), start=1):
+        if previous is not None:
+            config = dataclasses.replace(config, init_from=str(previous / "model.keras"))
+        done = _epochs_done(folder)
+        previous = folder
+        if done >= config.epochs and (folder / "model.keras").is_file():
+            _say(progress, f"[train] stage {number} of {len(stages)}: already trained, reused")
+            continue
+        _say(progress, f"[train] stage {number} of {len(stages)}: {config.model} for "
+                       f"{config.epochs} epoch(s)"
+                       + (f", consistency {config.consistency:g}" if config.consistency else ""))
+        result = train(config, data, folder, resume=done > 0, progress=progress, notes=notes)
+    return result
+
+
+def _epochs_done(folder: Path) -> int:
+    state = folder / "state.json"
+    if not state.is_file():
+        return 0
+    try:
+        return int(json.loads(state.read_text(encoding="utf-8")).get("epochs_done", 0))
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(text, flush=True)

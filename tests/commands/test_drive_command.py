@@ -74,8 +74,8 @@ def test_serves_the_simulator_until_interrupted(tmp_path: Path, tiny_model_path:
                 break
         assert port is not None, "the server never said where it listens"
         # It says how it drives the model: the options given, on a file without settings.
-        assert any("steering hold 0.05" in line and "slower in curves" in line
-                   for line in seen), seen
+        line = process.stderr.readline()
+        assert "steering hold 0.05" in line and "slower in curves" in line, (seen, line)
 
         async def drive() -> list[str]:
             url = f"ws://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket"

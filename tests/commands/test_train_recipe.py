@@ -30,7 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.02)
+        mirror_average=True, steering_hold=0.01)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -52,7 +52,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--laps", "1", "--max-seconds", "2", "--no-scenery", "--workers", "1",
                  "--out", str(out), "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is True and header["steering_hold"] == 0.02
+    assert header["mirror_average"] is True and header["steering_hold"] == 0.01
     assert header["speed_head"] is True and header["slow_in_curves"] is False
     assert header["recipe"] == {"name": "best", "version": 1}
     # Options given override the file one by one.
@@ -61,7 +61,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--max-seconds", "2", "--no-scenery", "--workers", "1", "--out", str(out),
                  "--no-mirror-average", "--slow-in-curves", "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is False and header["steering_hold"] == 0.02
+    assert header["mirror_average"] is False and header["steering_hold"] == 0.01
     assert header["slow_in_curves"] is True
 
 

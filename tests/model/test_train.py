@@ -144,8 +144,9 @@ def test_training_logs_one_line_per_epoch_when_not_on_a_terminal(damaged_recordi
     import sys
 
     done = subprocess.run(
-        [sys.executable, "-m", "clonedrive", "train", *map(str, damaged_recordings), "--model",
-         "fast", "--epochs", "2", "--batch-size", "128", "--no-h5", "--out", str(tmp_path / "r")],
+        [sys.executable, "-m", "clonedrive", "train", *map(str, damaged_recordings), "--recipe",
+         "writeup", "--epochs", "2", "--batch-size", "128", "--no-h5", "--out",
+         str(tmp_path / "r")],
         capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     output = done.stdout + done.stderr

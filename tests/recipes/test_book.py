@@ -60,14 +60,14 @@ def test_writeup_is_todays_demo():
 
 def test_a_copied_and_edited_recipe_is_used(tmp_path):
     text = _text("best").replace('name = "best"', 'name = "mine"').replace(
-        "epochs = 5", "epochs = 2").replace("steering_hold = 0.02", "steering_hold = 0.01")
+        "epochs = 3", "epochs = 2").replace("steering_hold = 0.01", "steering_hold = 0.005")
     path = tmp_path / "mine.toml"
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
     assert recipe.label() == "mine v1"
     assert recipe.train_config().epochs == 2
-    assert recipe.driving.steering_hold == 0.01
+    assert recipe.driving.steering_hold == 0.005
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
     assert train.epochs == 3  # the demo's option overrides the file
 
@@ -90,7 +90,7 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
 
 @pytest.mark.parametrize("edit, message", [
     (("[train]", "[train]\nwarp = 9"), "warp"),
-    (("steering_hold = 0.02", "steering_hold = 2.0"), "steering_hold"),
+    (("steering_hold = 0.01", "steering_hold = 2.0"), "steering_hold"),
     (('name = "best"', 'name = ""'), "needs a name"),
     (("version = 1", "version = 0"), "version"),
     (("laps = 3", "laps = 0"), "laps"),

@@ -99,9 +99,6 @@ def run(args: argparse.Namespace) -> int:
     except (FileNotFoundError, ValueError) as error:
         print(f"clonedrive drive: {error}", file=sys.stderr)
         return 1
-    print(f"clonedrive drive: {args.model}"
-          + (" (speed head: the learned speed, capped by the set speed)" if policy.speed_head
-             else "") + f"; {policy.driving_settings().describe()}", file=sys.stderr)
     server = DriveServer(policy, config)
     try:
         server.serve_forever()

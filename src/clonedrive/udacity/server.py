@@ -245,6 +245,11 @@ class DriveServer:
             ) as server:
                 self.port = _bound_port(server, self.port)
                 logger.info("drive server listening on %s", self.url)
+                if hasattr(self.policy, "driving_settings"):
+                    logger.info("driving the model: %s%s",
+                                self.policy.driving_settings().describe(),
+                                "; speed head: the learned speed, capped by the set speed"
+                                if getattr(self.policy, "speed_head", False) else "")
                 if not self.config.loopback_only:
                     logger.warning("listening on %s: other machines can connect and drive",
                                    self.host)

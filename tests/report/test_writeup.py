@@ -275,3 +275,39 @@ def test_report_command_writes_into_out(tmp_path: Path, run_dir: Path, capsys) -
     assert any("eval.json" in note for note in printed["notes"])
     assert not (partial / "report.md").exists()
     assert main(["report", str(tmp_path / "nowhere")]) == 2
+
+
+def test_the_summary_leads_with_clean_laps_calm_and_fast_and_names_the_recipe(
+        tmp_path: Path, run_dir) -> None:
+    folder = tmp_path / "recipe"
+    shutil.copytree(run_dir / "eval", folder / "eval")
+    path = folder / "eval" / "eval.json"
+    evaluation = json.loads(path.read_text(encoding="utf-8"))
+    path.write_text(json.dumps({**evaluation, "recipe": {"name": "best", "version": 1}}),
+                    encoding="utf-8")
+    markdown = write_report(folder).markdown_path.read_text(encoding="utf-8")
+    summary = markdown.split("**In short:**", 1)[1].split("\n\n", 2)[1]
+    first = summary.splitlines()[0]
+    runs = evaluation["runs"]
+    clean = sum(run["laps_completed"] for run in runs)
+    assert first.startswith(f"- **{clean}/{sum(run['laps_target'] for run in runs)} laps clean**")
+    assert "mph" in first
+    results = _section(markdown, SECTION_TITLES["results"])
+    assert "recipe **best v1**" in results
+    from clonedrive.recipes.book import load_recipe_file
+
+    writeup = load_recipe_file("writeup")
+    if writeup.measured:  # best compares itself with the write-up's stored figures
+        assert f"beside the {writeup.label()} recipe" in results
+        assert str(writeup.measured["steering_rate_ratio"]) in results
+
+
+def test_a_recipe_name_cannot_inject_markup(tmp_path: Path, run_dir) -> None:
+    folder = tmp_path / "hostile"
+    shutil.copytree(run_dir / "eval", folder / "eval")
+    path = folder / "eval" / "eval.json"
+    evaluation = json.loads(path.read_text(encoding="utf-8"))
+    path.write_text(json.dumps({**evaluation, "recipe": {"name": "<script>x</script>",
+                                                         "version": 1}}), encoding="utf-8")
+    html = write_report(folder).html_path.read_text(encoding="utf-8")
+    assert "<script>x" not in html

@@ -58,9 +58,18 @@ def build(ctx: ReportContext) -> list[Section]:
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
+        base = _base_stage_epochs(train)
+        stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
+                  f"{fmt.plural(len(history), 'epoch')}" if base
+                  else fmt.plural(len(history), 'epoch'))
         ctx.headline(
-            f"Training: {fmt.plural(len(history), 'epoch')}, best validation loss "
+            f"Training: {stages}, best validation loss "
             f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
+        if base:
+            section.blocks.append(Paragraph(
+                f"Training ran in two stages (the recipe's `[finetune]`): {base} epoch(s) into "
+                "`base/`, then the settings above from that stage's best model; the table is "
+                "the second stage's."))
         columns = [c for c in ("loss", "val_loss", "mse", "val_mse", "seconds")
                    if any(c in row for row in history)]
         headers = ("epoch", *[{"loss": "training loss", "val_loss": "validation loss",
@@ -111,3 +120,16 @@ def _split_text(kind: str | None, description: str | None) -> str:
     if description:
         text += f" This run: {description}."
     return text
+
+
+def _base_stage_epochs(train) -> int:
+    """Epochs of a first training stage in ``TRAIN/base/`` (recipes.training), 0 if none."""
+    from clonedrive.model.history import HISTORY_NAME, read_history
+
+    path = train / "base" / HISTORY_NAME
+    if not path.is_file():
+        return 0
+    try:
+        return len(read_history(path))
+    except (OSError, ValueError):
+        return 0

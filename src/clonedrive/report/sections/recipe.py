@@ -41,8 +41,8 @@ def run_figures(runs: list[dict]) -> dict:
             "mean_abs_cte_m": mean("mean_abs_cte_m")}
 
 
-def lead(runs: list[dict]) -> str:
-    """One sentence: clean laps at what speed, how calm, how fast."""
+def lead(runs: list[dict], recipe: dict | None = None) -> str:
+    """One sentence: clean laps at what speed, how calm, how fast (and the recipe)."""
     figures = run_figures(runs)
     speeds = sorted({float(run["speed_mph"]) for run in runs
                      if isinstance(run.get("speed_mph"), int | float)})
@@ -57,6 +57,9 @@ def lead(runs: list[dict]) -> str:
     fast = figures["lap_time_ratio"]
     if fast is not None:
         text += f"; **fast:** laps take {fmt.num(fast)}× the expert's time"
+    if isinstance(recipe, dict) and recipe.get("name"):
+        text += (f" (recipe {_safe(str(recipe['name']))} "
+                 f"v{_safe(str(recipe.get('version')))})")
     return text + "."
 
 

@@ -40,7 +40,7 @@ def build(ctx: ReportContext) -> list[Section]:
         "(lower is smoother)."
         + (f" Model: `{model}`." if model else "")))
     section.blocks.append(_results_table(ctx, runs, report.get("totals") or {}))
-    ctx.facts["lead"] = lead(runs)
+    ctx.facts["lead"] = lead(runs, report.get("recipe"))
     section.blocks += recipe_blocks(ctx, runs)
     if any(run.get("timed_out") for run in runs):
         section.blocks.append(Paragraph(

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 WAIT_S = 180.0  # the longest a test waits for a process to get somewhere (not a timing)
@@ -30,6 +31,25 @@ def spawned_workers(parent: int) -> set[int]:
         if int(ppid) == parent and b"spawn_main" in command:
             workers.add(int(entry.name))
     return workers
+
+
+@contextmanager
+def started(command: list[str], env: dict):
+    """A clonedrive process (stderr captured), killed on the way out if still running."""
+    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        yield process
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def terminate(process: subprocess.Popen) -> str:
+    """Send SIGTERM and wait for the process to end; its stderr."""
+    process.send_signal(signal.SIGTERM)
+    return process.communicate(timeout=WAIT_S)[1]
 
 
 def wait_for(condition) -> bool:
@@ -54,18 +74,11 @@ def test_sigterm_stops_evaluate_and_its_workers(tmp_path: Path, tiny_model_path:
     command = [sys.executable, "-m", "clonedrive.cli", "evaluate", str(tiny_model_path),
                "--track", "lake", "--unseen", "4", "--laps", "20", "--unseen-laps", "20",
                "--workers", "2", "--batch", "1", "--no-scenery", "--out", str(tmp_path / "eval")]
-    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
-    try:
+    with started(command, env) as process:
         assert wait_for(lambda: spawned_workers(process.pid) or process.poll() is not None)
         workers = spawned_workers(process.pid)
         assert workers, "evaluate started no worker"
-        process.send_signal(signal.SIGTERM)
-        _, err = process.communicate(timeout=WAIT_S)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
+        err = terminate(process)
     assert process.returncode == 128 + signal.SIGTERM, err
     assert err.strip().splitlines()[-1] == "terminated"
     assert "Traceback" not in err
@@ -98,17 +111,10 @@ def test_a_terminated_train_removes_its_image_cache(tmp_path: Path) -> None:
     command = [sys.executable, "-m", "clonedrive.cli", "train", str(recording), "--out",
                str(out), "--cache", "memmap", "--model", "fast", "--epochs", "100000",
                "--val-fraction", "0.3", "--json"]
-    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
     cache = out / "base" / "image_cache.u8"  # recipe best trains its first stage in base/
-    try:
+    with started(command, env) as process:
         assert wait_for(lambda: cache.exists() or process.poll() is not None)
         assert cache.exists(), process.communicate()[1]
-        process.send_signal(signal.SIGTERM)
-        _, err = process.communicate(timeout=WAIT_S)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
+        err = terminate(process)
     assert process.returncode == 128 + signal.SIGTERM, err
     assert not cache.exists()

@@ -34,7 +34,8 @@ class JsonFileError(ValueError):
 
 
 def config_from_dict(cls: type[T], values: dict[str, Any], *, source: str = "config") -> T:
-    """Build ``cls`` from ``values``; unknown keys raise ``ValueError`` naming them."""
+    """Build ``cls`` from ``values``; unknown keys, and values ``cls`` refuses, raise
+    ``ValueError`` naming ``source``."""
     if not dataclasses.is_dataclass(cls):
         raise TypeError(f"{cls!r} is not a dataclass")
     known = {field.name for field in dataclasses.fields(cls)}
@@ -44,7 +45,10 @@ def config_from_dict(cls: type[T], values: dict[str, Any], *, source: str = "con
             f"{source}: unknown key(s) {', '.join(unknown)} for {cls.__name__}; "
             f"expected some of: {', '.join(sorted(known))}"
         )
-    return cls(**values)
+    try:
+        return cls(**values)
+    except (TypeError, ValueError) as error:  # __post_init__'s checks (a str where a number...)
+        raise ValueError(f"{source}: {error}") from None
 
 
 def config_to_dict(config: Any) -> dict[str, Any]:

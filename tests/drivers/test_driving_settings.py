@@ -96,3 +96,20 @@ def test_bad_settings_are_refused(values):
 def test_describe_names_what_is_on():
     assert "mirror averaging" in CALM.describe() and "hold 0.02" in CALM.describe()
     assert "drive.py" in DrivingSettings().describe()
+
+
+def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):
+    from clonedrive.drivers.driving_settings import copy_notes
+
+    source = _copy(tiny_model_path, tmp_path, "source.keras")
+    write_notes(source, notes_for(CALM, {"name": "best", "version": 1}))
+    target = _copy(tiny_model_path, tmp_path, "target.keras")
+    copy_notes(source, target)
+    assert read_notes(target) == read_notes(source)
+    plain = _copy(tiny_model_path, tmp_path, "plain.keras")
+    copy_notes(plain, target)  # a source without notes leaves the target's
+    assert stored_settings(target) == CALM
+    other = tmp_path / "weights.bin"
+    other.write_bytes(b"x")
+    copy_notes(source, other)  # a kind of file that holds none: untouched
+    assert other.read_bytes() == b"x"

@@ -55,6 +55,7 @@ def _combine(args: argparse.Namespace, out) -> int:
     import numpy as np
 
     from clonedrive.config import atomic_path
+    from clonedrive.drivers.driving_settings import copy_notes
     from clonedrive.drivers.network import has_speed_head, load_model
     from clonedrive.udacity_spec import IMAGE_SHAPE
 
@@ -83,7 +84,7 @@ def _combine(args: argparse.Namespace, out) -> int:
     try:
         with atomic_path(out) as temporary:  # creates the folder
             ensemble.save(temporary)
-            _keep_first_members_notes(args.models[0], temporary)
+            copy_notes(args.models[0], temporary)  # driven as its first member says
     except OSError as error:
         print(f"clonedrive ensemble: cannot write {out}: {error}", file=sys.stderr)
         return 1
@@ -91,15 +92,6 @@ def _combine(args: argparse.Namespace, out) -> int:
     print(f"wrote {out}: the mean {kind} of {len(members)} models "
           f"(largest difference from the members' mean on test frames: {difference:.1e})")
     return 0
-
-
-def _keep_first_members_notes(first_member: str, path) -> None:
-    """The ensemble is driven as its first member says (its file's driving settings)."""
-    from clonedrive.drivers.driving_settings import read_notes, write_notes
-
-    notes = read_notes(first_member)
-    if notes and str(path).lower().endswith((".keras", ".h5")):
-        write_notes(path, notes)
 
 
 def _as_list(output) -> list:

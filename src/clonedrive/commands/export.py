@@ -32,15 +32,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="allow Lambda layers (Python code in the file); see drive --help")
 
 
-def _keep_notes(model_path, out) -> None:
-    """The ONNX file is driven as the model it came from (its driving settings and recipe)."""
-    from clonedrive.drivers.driving_settings import read_notes, write_notes
-
-    notes = read_notes(model_path)
-    if notes:
-        write_notes(out, notes)
-
-
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -68,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
             from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx
 
             export_onnx(model, out)
-            _keep_notes(model_path, out)
+            from clonedrive.drivers.driving_settings import copy_notes
+
+            copy_notes(model_path, out)  # driven as the model it came from
         onnx_model = OnnxModel.from_file(out)
     except (FileNotFoundError, ValueError) as error:
         print(f"clonedrive export: {error}", file=sys.stderr)

@@ -186,7 +186,7 @@ def recipe_from_table(
 ) -> Recipe:
     """A Recipe from a parsed recipe table (``root``, ``defaults``, ``recording``); errors name
     ``source`` and the offending key."""
-    _reject_unknown(data, _TOP_KEYS, source, "top level")
+    reject_unknown(data, _TOP_KEYS, source, "top level")
 
     base = Path(base_dir)
     root = data.get("root", ".")
@@ -197,7 +197,7 @@ def recipe_from_table(
     defaults_table = data.get("defaults", {})
     if not isinstance(defaults_table, dict):
         raise ValueError(f"{source}: [defaults] must be a table")
-    _reject_unknown(defaults_table, _SETTING_KEYS, source, "[defaults]")
+    reject_unknown(defaults_table, _SETTING_KEYS, source, "[defaults]")
     defaults = _settings(defaults_table, source, "[defaults]", {})
 
     entries = data.get("recording")
@@ -209,7 +209,7 @@ def recipe_from_table(
     recordings = []
     for number, entry in enumerate(entries, start=1):
         where = f"[[recording]] #{number}"
-        _reject_unknown(entry, _RECORDING_KEYS, source, where)
+        reject_unknown(entry, _RECORDING_KEYS, source, where)
         if "path" not in entry:
             raise ValueError(f"{source}: {where} has no 'path' (the recording's folder)")
         if not isinstance(entry["path"], str) or not entry["path"]:
@@ -262,7 +262,9 @@ def recipe_to_toml(recipe: Recipe) -> str:
     return "\n".join(lines)
 
 
-def _reject_unknown(table: Mapping, known: Sequence[str], source: str, where: str) -> None:
+def reject_unknown(table: Mapping, known: Sequence[str], source: str, where: str) -> None:
+    """``ValueError`` naming ``source``, ``where`` and the first key of ``table`` not in
+    ``known``."""
     for key in table:
         if key not in known:
             raise ValueError(

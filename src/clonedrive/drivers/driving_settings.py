@@ -79,15 +79,9 @@ class DrivingSettings:
     @classmethod
     def from_dict(cls, values: dict, source: str) -> DrivingSettings:
         """Settings from a table; unknown keys and bad values are errors naming ``source``."""
-        known = {field.name for field in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"{source}: unknown driving setting(s) {', '.join(unknown)}; "
-                             f"expected {', '.join(sorted(known))}")
-        try:
-            return cls(**values)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"{source}: {error}") from None
+        from clonedrive.config import config_from_dict
+
+        return config_from_dict(cls, values, source=source)
 
 
 def read_notes(path: str | os.PathLike) -> dict:
@@ -117,12 +111,27 @@ def read_notes(path: str | os.PathLike) -> dict:
 
 def stored_settings(path: str | os.PathLike) -> DrivingSettings | None:
     """The driving settings stored in the model file at ``path``, or None if it has none."""
-    driving = read_notes(path).get("driving")
+    return settings_in(read_notes(path), path)
+
+
+def settings_in(notes: dict, path: str | os.PathLike) -> DrivingSettings | None:
+    """The driving settings in a model file's ``notes`` (None if they hold none); errors name
+    the file at ``path``."""
+    driving = notes.get("driving")
     if driving is None:
         return None
     if not isinstance(driving, dict):
         raise ValueError(f"{path}: its driving settings are not a table")
     return DrivingSettings.from_dict(driving, f"{path}: driving settings")
+
+
+def copy_notes(source: str | os.PathLike, target: str | os.PathLike) -> None:
+    """Give the model file ``target`` the notes of ``source`` (an ensemble its first member's,
+    an ONNX export its Keras model's); nothing when ``source`` has none or ``target`` is a
+    kind of file that holds none."""
+    notes = read_notes(source)
+    if notes and Path(target).suffix.lower() in (".keras", ".h5", ".hdf5", ".onnx"):
+        write_notes(target, notes)
 
 
 def notes_for(settings: DrivingSettings, recipe: dict | None = None) -> dict:

@@ -434,12 +434,10 @@ def load_policy(
     ``portable``: that model's checked traces (:meth:`NetworkPolicy.portable`), run by PyTorch
     alone instead of reading the file with Keras (a worker process's start); the same outputs
     to the last bit. The policy's ``notes`` are the file's notes (its recipe, if it has one)."""
-    from clonedrive.drivers.driving_settings import read_notes
+    from clonedrive.drivers.driving_settings import read_notes, settings_in
 
     notes = read_notes(path)
-    stored = notes.get("driving")
-    settings = DrivingSettings.from_dict(stored, f"{path}: driving settings") \
-        if isinstance(stored, dict) else DrivingSettings()
+    settings = settings_in(notes, path) or DrivingSettings()
     options = {**settings.options(), **{k: v for k, v in kwargs.items() if v is not None}}
     if portable is not None:
         from clonedrive.drivers.traced import TracedModel

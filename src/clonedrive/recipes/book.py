@@ -53,7 +53,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table
+from clonedrive.config import config_from_dict
+from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reject_unknown
 from clonedrive.drivers.driving_settings import DrivingSettings
 
 try:
@@ -161,10 +162,8 @@ class RecipeFile:
 
         defaults = self.data_table.get("defaults", {})
         base = {"correction": defaults["correction"]} if "correction" in defaults else {}
-        try:
-            return TrainConfig(**{**base, **self.train, **overrides})
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"{self.source}: [train]: {error}") from None
+        return config_from_dict(TrainConfig, {**base, **self.train, **overrides},
+                                source=f"{self.source}: [train]")
 
     def notes(self) -> dict:
         """What a model trained with this recipe carries in its file."""
@@ -215,9 +214,9 @@ def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) ->
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{source}: not valid TOML: {error}") from None
-    _reject_unknown(data, _TOP_KEYS, source, "the top level")
+    reject_unknown(data, _TOP_KEYS, source, "the top level")
     identity = _table(data, "recipe", source)
-    _reject_unknown(identity, _IDENTITY_KEYS, source, "[recipe]")
+    reject_unknown(identity, _IDENTITY_KEYS, source, "[recipe]")
     name, version = identity.get("name"), identity.get("version")
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"{source}: [recipe] needs a name (a string)")
@@ -247,7 +246,7 @@ def _recordings(data: dict, source: str) -> tuple[tuple[RecordSpec, ...], dict]:
     specs, data_entries = [], []
     for number, entry in enumerate(entries, start=1):
         where = f"[[recording]] #{number}"
-        _reject_unknown(entry, ("path", *_RECORD_KEYS, *SETTING_KEYS), source, where)
+        reject_unknown(entry, ("path", *_RECORD_KEYS, *SETTING_KEYS), source, where)
         if not isinstance(entry.get("name"), str) or not entry["name"]:
             raise ValueError(f"{source}: {where} needs a name (a string)")
         data_entries.append({key: entry[key] for key in ("name", "path", *SETTING_KEYS)
@@ -294,11 +293,9 @@ def _evaluation(data: dict, source: str) -> tuple[dict, ...]:
         values = {key: tuple(value) if isinstance(value, list) else value
                   for key, value in group.items()}
         for key in ("speeds_mph", "unseen_speed_mph"):  # 30 and 30.0 alike, as the CLI's
-            values[key] = _floats(values.get(key))
-        try:
-            EvalConfig(**values)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"{source}: [[evaluate]] #{number}: {error}") from None
+            if key in values:
+                values[key] = _floats(values[key])
+        config_from_dict(EvalConfig, values, source=f"{source}: [[evaluate]] #{number}")
         checked.append(values)
     return tuple(checked)
 
@@ -316,10 +313,3 @@ def _table(data: dict, key: str, source: str) -> dict:
     if not isinstance(value, dict):
         raise ValueError(f"{source}: [{key}] must be a table")
     return dict(value)
-
-
-def _reject_unknown(table: dict, known: tuple[str, ...], source: str, where: str) -> None:
-    unknown = sorted(set(table) - set(known))
-    if unknown:
-        raise ValueError(f"{source}: unknown key(s) {', '.join(map(repr, unknown))} in {where}; "
-                         f"expected some of: {', '.join(known)}")

@@ -16,7 +16,8 @@ DESCRIPTION = (
     "train/ (or model.keras itself), eval/ (eval.json) and demo.json; a missing piece leaves a "
     "one-line note in its section. Writes OUT/report.md with its figures in OUT/report/, and "
     "OUT/report.html with the figures embedded (one file to send). With --real-log, a section "
-    "checks the model open loop on recorded Udacity logs (clonedrive crosscheck)."
+    "checks the model on recorded Udacity logs, open loop (clonedrive crosscheck) and closed "
+    "loop (clonedrive replay)."
 )
 #: Example command lines, shown at the end of ``clonedrive report --help``.
 EXAMPLES = (
@@ -35,8 +36,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-failures", type=int, default=defaults.max_failures, metavar="N",
                         help="off-road events shown with their frames")
     parser.add_argument("--real-log", action="append", default=[], metavar="LOG_DIR",
-                        help="also check the model open loop on this recorded Udacity log "
-                             "(repeatable; see clonedrive crosscheck)")
+                        help="also check the model on this recorded Udacity log, open and closed "
+                             "loop (repeatable; see clonedrive crosscheck and replay)")
     parser.add_argument("--json", action="store_true",
                         help="no progress bar; print one JSON object with the written paths")
 

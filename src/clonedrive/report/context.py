@@ -45,8 +45,8 @@ SECTION_TITLES = {
 }
 #: Sections only in the report when asked for (``report --real-log``) or when the run has
 #: them (``dagger.json``, ``bench.json``).
-OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open loop)", "dagger": "DAgger",
-                           "bench": "Benchmark"}
+OPTIONAL_SECTION_TITLES = {"realdata": "Real Udacity frames (open and closed loop)",
+                           "dagger": "DAgger", "bench": "Benchmark"}
 
 
 @dataclass(frozen=True)

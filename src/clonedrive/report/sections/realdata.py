@@ -1,9 +1,11 @@
-"""Real Udacity frames (open loop): the run's model on recorded Udacity logs, given with
-``clonedrive report RUN_DIR --real-log DIR`` (repeatable).
+"""Real Udacity frames: the run's model on recorded Udacity logs, given with
+``clonedrive report RUN_DIR --real-log DIR`` (repeatable), open loop and closed loop.
 
 For each log, :func:`clonedrive.evaluate.crosscheck.crosscheck` predicts the steering for every
-centre image and compares it with the human's; its files go to ``OUT/crosscheck/<log>/`` and
-its plot into the report. The section is only in the report when a log is given.
+centre image and compares it with the human's (open loop; files in ``OUT/crosscheck/<log>/``),
+and :func:`clonedrive.replay.output.replay` drives the model through the log by viewpoint
+synthesis (closed loop; files in ``OUT/replay/<log>/``). Both plots go into the report. The
+section is only in the report when a log is given.
 """
 
 from __future__ import annotations
@@ -42,9 +44,11 @@ def build(ctx: ReportContext) -> list[Section]:
         "recorded values."))
     rows, figures = [], []
     crosscheck_root = ctx.figures_dir.parent / "crosscheck"
+    replayed = []
     for log in logs:
         log = Path(log)
         stem = safe_stem(log.resolve().name)
+        replayed.append(_replay(ctx, policy, model_path, log, stem, section))
         try:
             report = crosscheck(policy, log, crosscheck_root / stem, config,
                                 model_path=str(model_path))
@@ -64,4 +68,58 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(("log", "rows", "RMSE", "always 0", "always the mean", "r",
                                      "r raw"), tuple(rows), align="lrrrrrr"))
     section.blocks += figures
+    replayed = [entry for entry in replayed if entry is not None]
+    if replayed:
+        section.blocks += _replay_blocks(replayed)
     return [section]
+
+
+def _replay(ctx: ReportContext, policy, model_path: Path, log: Path, stem: str,
+            section: Section) -> tuple[str, dict, Figure] | None:
+    """Replay the model through ``log`` into ``OUT/replay/<stem>/``: (log name, the figures
+    over the log, the offset plot), or None after a note saying why it could not."""
+    from clonedrive.data.driving_log import DrivingLogError
+    from clonedrive.replay.output import replay
+
+    out = ctx.figures_dir.parent / "replay" / stem
+    try:
+        report = replay(policy, [log], out, model_path=str(model_path))
+    except (FileNotFoundError, ValueError, DrivingLogError) as error:
+        section.blocks.append(ctx.note(f"`{log.name}`: not replayed ({error})."))
+        return None
+    figures = report["totals"]
+    plot = Figure(copy_figure(out / report["files"]["plot"], ctx.figures_dir,
+                              f"replay_{stem}.png"),
+                  f"`{log.name}`, closed loop: the car's offset from the human's path.")
+    ctx.headline(f"Closed loop on real Udacity frames (`{log.name}`, replay): autonomy "
+                 f"{fmt.num(figures['autonomy_pct'], 1)} %, "
+                 f"{fmt.num(figures['interventions_per_km'], 1)} interventions per km.")
+    return log.name, figures, plot
+
+
+def _replay_blocks(replayed: list[tuple[str, dict, Figure]]) -> list:
+    """The closed-loop paragraph, its table and the offset plots."""
+    from clonedrive.replay.episode import ReplayConfig
+
+    config = ReplayConfig()
+    rows = tuple(
+        (f"`{name}`", str(figures["episodes"]), fmt.num(figures["distance_m"], 0),
+         fmt.num(figures["autonomy_pct"], 1), str(figures["interventions"]),
+         fmt.num(figures["interventions_per_km"], 1), fmt.num(figures["mean_abs_offset_m"], 2),
+         f"{fmt.num(figures['jitter_per_s'], 2)} ({fmt.num(figures['human_jitter_per_s'], 2)})")
+        for name, figures, _ in replayed)
+    return [
+        Paragraph(
+            "Closed loop on the same logs (`clonedrive replay`): the car starts on the human's "
+            "path and is moved each frame by the difference between the model's steering and "
+            "the human's; the model sees the recorded frame re-rendered for the car's offset "
+            "and heading (flat road below the horizon). Beyond "
+            f"{config.max_offset_m:g} m from the path an intervention puts it back. Autonomy "
+            f"= (1 - interventions x {config.intervention_penalty_s:g} s / elapsed) x 100, as "
+            "NVIDIA's PilotNet paper measured it: 100 % is no help needed; it reaches 0 % at "
+            "one intervention per 6 s of driving. Jitter is the steering's mean change per "
+            "second; the human's is in brackets."),
+        Table(("log", "episodes", "distance m", "autonomy %", "interventions", "per km",
+               "mean |offset| m", "jitter /s (human)"), rows, align="lrrrrrrr"),
+        *(figure for _, _, figure in replayed),
+    ]

@@ -101,3 +101,40 @@ def test_a_model_of_another_recipe_is_refused(tmp_path, tiny_model_path):
         _check_same_recipe(train_dir, best)
     write_notes(train_dir / "model.keras", best.notes())
     _check_same_recipe(train_dir, best)  # its own recipe: reused
+
+
+def test_a_recipe_recording_can_be_drawn_in_another_look(tmp_path):
+    """``look = "udacity"`` in a recipe's recording reaches the recorder: the frames differ
+    from the same recording's in the theme's look, and the folder's spec names the look (and
+    a spec without one has no ``look`` key, as folders recorded before looks existed)."""
+    from clonedrive.data.driving_log import read_driving_log
+    from clonedrive.demo import RECORDING_SPEC_FILE, _record_stage
+    from clonedrive.images import read_rgb
+    from clonedrive.recipes.book import RecordSpec
+
+    plain = RecordSpec(name="plain", track="lake", style="center", laps=1, speed_mph=15,
+                       seconds=0.5)
+    looked = RecordSpec(name="looked", track="lake", style="center", laps=1, speed_mph=15,
+                        seconds=0.5, look="udacity")
+    _record_stage([plain, looked], tmp_path, seed=0, progress=False, workers=1)
+    specs = {name: json.loads((tmp_path / name / RECORDING_SPEC_FILE).read_text())
+             for name in ("plain", "looked")}
+    assert "look" not in specs["plain"] and specs["looked"]["look"] == "udacity"
+    first = {name: read_rgb(read_driving_log(tmp_path / name).rows[0].center).astype(int)
+             for name in ("plain", "looked")}
+    assert abs(first["plain"] - first["looked"]).mean() > 5.0
+
+
+def test_a_recipe_look_must_be_a_training_look(tmp_path):
+    from importlib import resources
+
+    from clonedrive.recipes.book import load_recipe_file
+
+    text = resources.files("clonedrive.recipes").joinpath("best.toml").read_text("utf-8")
+    path = tmp_path / "looks.toml"
+    path.write_text(text.replace('name = "middle"', 'name = "middle"\nlook = "udacity"', 1)
+                    .replace('name = "left"', 'name = "left"\nlook = "mars"', 1))
+    with pytest.raises(ValueError, match=r"looks.toml: .*look = 'mars'; expected one of"):
+        load_recipe_file(path)
+    path.write_text(text.replace('name = "middle"', 'name = "middle"\nlook = "udacity"', 1))
+    assert load_recipe_file(path).recordings[0].look == "udacity"

@@ -128,7 +128,7 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
                                      speed_mph=spec.speed_mph, reverse=spec.reverse,
                                      noise=spec.noise, seconds=spec.seconds,
                                      seed=seed + index, start_time="2026-01-01T12:00:00",
-                                     **options)
+                                     look=spec.look, **options)
         tasks.append({"index": index, "name": spec.name, "config": record_config,
                       "out": str(out), "spec": _spec_record(spec, seed + index)})
     workers = workers or default_workers()
@@ -150,7 +150,12 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
 
 
 def _spec_record(spec: RecordSpec, seed: int) -> dict:
-    return {**dataclasses.asdict(spec), "seed": seed}
+    """What ``recipe_recording.json`` holds: the spec and its seed (no ``look`` when it has
+    none, as folders recorded before recipes could set one)."""
+    record = {**dataclasses.asdict(spec), "seed": seed}
+    if record["look"] is None:
+        del record["look"]
+    return record
 
 
 def _check_same_recording(folder: Path, spec: RecordSpec, seed: int) -> None:

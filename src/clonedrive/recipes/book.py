@@ -87,6 +87,8 @@ class RecordSpec:
     noise: float = 0.0
     seconds: float | None = None
     turn_curvature_per_m: float | None = None  #: turns style: record only tighter curves
+    #: a condition family (``record --look``, e.g. "udacity") the recording's look is drawn from
+    look: str | None = None
 
 
 _RECORD_KEYS = tuple(item.name for item in dataclasses.fields(RecordSpec))
@@ -279,7 +281,15 @@ def _record_spec(entry: dict, source: str, where: str) -> RecordSpec:
         raise ValueError(f"{source}: {where}: laps = {laps!r}; expected a whole number 1-100")
     if not isinstance(values.get("reverse", False), bool):
         raise ValueError(f"{source}: {where}: reverse must be true or false")
+    _check_look(values.get("look"), f"{source}: {where}")
     return RecordSpec(**values)
+
+
+def _check_look(look: object, where: str) -> None:
+    from clonedrive.sim.conditions import TRAINING_LOOKS
+
+    if look is not None and look not in TRAINING_LOOKS:
+        raise ValueError(f"{where}: look = {look!r}; expected one of {', '.join(TRAINING_LOOKS)}")
 
 
 def _evaluation(data: dict, source: str) -> tuple[dict, ...]:

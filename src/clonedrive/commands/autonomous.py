@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.counts import MAX_LAPS, MAX_PORT, count
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -28,13 +29,14 @@ def add_arguments(parser) -> None:
 
     d = AutonomousConfig()
     parser.add_argument("--track", default=d.track, help=TRACK_NAMES_HELP)
-    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
+    parser.add_argument("--laps", type=count(MAX_LAPS), default=d.laps, help="laps to drive")
     parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
                         help="the drive server's set speed (drive.py's and `clonedrive drive`'s "
                              "default): interventions put the car back at it and the time "
                              "limit follows from it")
     parser.add_argument("--host", default=d.client.host, help="drive server host")
-    parser.add_argument("--port", type=int, default=d.client.port, help="drive server port")
+    parser.add_argument("--port", type=count(MAX_PORT),
+                        default=d.client.port, help="drive server port")
     parser.add_argument("--connect-timeout", type=float, default=d.client.connect_timeout_s,
                         metavar="SECONDS",
                         help="keep retrying to reach the drive server this long")

@@ -40,6 +40,18 @@ def test_a_config_declaring_a_huge_layer_is_refused_by_a_real_process(
     assert not out.exists()
 
 
+def test_evaluate_refuses_it_too(tiny_model_path: Path, tmp_path: Path) -> None:
+    """evaluate reads the model before Keras is imported for anything else."""
+    huge = keras_with_huge_dense(tiny_model_path, tmp_path / "huge.keras", HUGE_UNITS)
+    finished = run_measured("evaluate", huge, "--laps", "1", "--workers", "1", "--out",
+                            tmp_path / "eval")
+    assert finished.rc == 2  # evaluate's status for a model it cannot use
+    assert "Traceback" not in finished.stderr
+    assert finished.stderr.strip().splitlines()[-1].startswith(
+        f"clonedrive evaluate: {huge}: its layer configuration declares 5.")
+    assert finished.peak_rss_mb < REFUSAL_PEAK_MB
+
+
 def test_the_refused_network_is_never_allocated_later(tiny_model_path: Path,
                                                        tmp_path: Path) -> None:
     """Keras initialises deferred variables when a later stateless scope closes: the refused

@@ -111,11 +111,12 @@ def declared_weight_bytes(build: Callable[[], Any]) -> int:
     public access) is put back as it was, so the network built here is never allocated.
     """
     import numpy as np
-    from keras.src.backend.common import global_state
 
     from clonedrive.keras_backend import import_keras
 
-    keras = import_keras()
+    keras = import_keras()  # first: it chooses the backend, which Keras reads on import
+    from keras.src.backend.common import global_state
+
     key = "uninitialized_variables"
     before = list(global_state.get_global_attribute(key, None) or [])
     try:

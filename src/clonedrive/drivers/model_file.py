@@ -109,6 +109,27 @@ def file_kind(path: Path) -> str:
 
 
 def _read_keras(path: Path, *, trust: bool) -> Any:
+    kind, config, lambdas, legacy = _checked_keras(path, trust=trust)
+    if lambdas:
+        logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
+    if legacy:
+        from clonedrive.drivers import legacy_keras
+
+        return legacy_keras.load(path, config, lambdas=lambdas)
+    return keras_load(path, safe_mode=not lambdas)
+
+
+def check_keras_file(path: str | Path) -> None:
+    """Everything :func:`read_model` checks in a ``.keras`` or ``.h5`` file before loading it
+    (its kind, its configuration, no Lambda layers, the memory it would take), for the code
+    that loads a file with Keras itself (a resumed training run, the report's network table).
+    Raises :class:`ModelFileError`."""
+    _checked_keras(Path(path), trust=False)
+
+
+def _checked_keras(path: Path, *, trust: bool) -> tuple[str, dict, list[str], bool]:
+    """(the file's kind, its configuration, its Lambda layers, whether Keras 1/2 saved it),
+    after every check that needs no model built."""
     kind = file_kind(path)
     suffix = path.suffix.lower()
     if kind == "other":
@@ -130,16 +151,11 @@ def _read_keras(path: Path, *, trust: bool) -> Any:
             "which Keras safe mode refuses to run. If you trust where the file came from, add "
             "--trust-model"
         )
-    if lambdas:
-        logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
-
     from clonedrive.drivers import legacy_keras
 
     legacy = kind == "hdf5" and legacy_keras.is_legacy_version(keras_version)
     _check_memory(path, kind, config, lambdas=lambdas, legacy=legacy)
-    if legacy:
-        return legacy_keras.load(path, config, lambdas=lambdas)
-    return keras_load(path, safe_mode=not lambdas)
+    return kind, config, lambdas, legacy
 
 
 #: What building a network from a configuration may raise for a file that is not a model

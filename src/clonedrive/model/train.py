@@ -206,8 +206,10 @@ def train(
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
         if epochs_done > 0:
+            from clonedrive.drivers.model_file import check_keras_file
             from clonedrive.model import consistency, losses
 
+            check_keras_file(out / "last.keras")  # bounded before Keras allocates
             model = keras.saving.load_model(
                 out / "last.keras", safe_mode=True,
                 custom_objects={**losses.CUSTOM_OBJECTS, **consistency.CUSTOM_OBJECTS})

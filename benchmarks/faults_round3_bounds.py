@@ -94,7 +94,8 @@ def counts(sandbox: Path, tiny: Path) -> dict:
     figures = {}
     for probe in COUNT_PROBES:
         argv = [places.get(str(item), item) for item in probe]
-        figures[" ".join(map(str, probe[:1] + probe[-2:-1]))] = summary(measured(*argv))
+        option = probe[probe.index(HUGE_COUNT) - 1]
+        figures[f"{probe[0]} {option}"] = summary(measured(*argv))
     return figures
 
 

@@ -73,3 +73,18 @@ def test_the_tiny_disk_is_really_full(disk: Path) -> None:
         (disk / "more").write_bytes(bytes(64 << 10))
     assert full.value.errno == 28
     assert shutil.disk_usage(disk).free < 64 << 10
+
+
+@pytest.mark.parametrize("verb", ["export", "ensemble"])
+def test_model_writers_on_a_full_disk_name_the_path_and_leave_nothing(
+        verb: str, disk: Path, tiny_model_path: Path) -> None:
+    filler = fill(disk, 0)
+    out = disk / ("model.onnx" if verb == "export" else "model.keras")
+    argv = [tiny_model_path, "--onnx"] if verb == "export" else [tiny_model_path] * 2
+    finished = run_measured(verb, *argv, "--out", out)
+    assert finished.rc == 1
+    assert "Traceback" not in finished.stderr
+    line = last_line(finished.stderr)
+    assert line.startswith(f"clonedrive {verb}: {disk}/")
+    assert line.endswith(": no space left on the device (disk full)")
+    assert sorted(disk.iterdir()) == [filler]

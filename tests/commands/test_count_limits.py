@@ -14,8 +14,8 @@ HUGE = "1000000000"
 OPTIONS = [
     (["train", "rec", "--out", "run"], "--epochs", counts.MAX_EPOCHS),
     (["train", "rec", "--out", "run"], "--batch-size", counts.MAX_BATCH_SIZE),
-    (["train", "rec", "--out", "run"], "--early-stopping", counts.MAX_EPOCHS),
-    (["train", "rec", "--out", "run"], "--workers", counts.MAX_WORKERS),
+    (["train", "rec", "--out", "run"], "--early-stopping", counts.MAX_PATIENCE),
+    (["train", "rec", "--out", "run"], "--workers", counts.MAX_TRAIN_WORKERS),
     (["train", "rec", "--out", "run"], "--crop-top", counts.MAX_CROP_TOP_PX),
     (["record", "--out", "rec"], "--laps", counts.MAX_LAPS),
     (["record", "--out", "rec"], "--max-off-road", counts.MAX_OFF_ROAD_EVENTS),
@@ -77,3 +77,12 @@ def test_a_real_train_process_refuses_a_billion_epochs_before_allocating(tmp_pat
     assert finished.stderr.strip().splitlines()[-1].startswith(
         "clonedrive train: error: argument --epochs: must be at most")
     assert not (tmp_path / "run").exists()
+
+
+def test_a_recipe_is_held_to_the_same_training_maxima(tmp_path) -> None:
+    """A recipe file sets training counts too: TrainConfig states the maxima."""
+    from clonedrive.model.train import MAX_COUNTS, TrainConfig
+
+    with pytest.raises(ValueError, match=f"epochs must be at most {MAX_COUNTS['epochs']:,}"):
+        TrainConfig(epochs=int(HUGE))
+    assert TrainConfig(epochs=MAX_COUNTS["epochs"]).epochs == MAX_COUNTS["epochs"]

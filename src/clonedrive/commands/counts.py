@@ -4,8 +4,9 @@ a batch or a frame buffer is sized from them. ``evaluate --unseen 1000000000`` o
 build a billion runs; every verb's counts are held to the same kind of limit here.
 
 The maxima are defined once: evaluate's in :data:`clonedrive.evaluate.config.MAX_COUNTS`
-(shared by the verbs that drive the same runs), the others below. Lower bounds (at least 1,
-odd, ...) stay with each stage's config, which states them.
+(shared by the verbs that drive the same runs), training's in
+:data:`clonedrive.model.train.MAX_COUNTS` (a recipe file sets them too), the others below.
+Lower bounds (at least 1, odd, ...) stay with each stage's config, which states them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections.abc import Callable
 
 from clonedrive.data.driving_log import MAX_LOG_ROWS
 from clonedrive.evaluate.config import MAX_COUNTS as EVALUATE_MAX
+from clonedrive.model.train import MAX_COUNTS as TRAIN_MAX
 from clonedrive.udacity_spec import IMAGE_HEIGHT
 
 #: Laps of one run (record, autonomous, dagger's recording and evaluation laps).
@@ -26,10 +28,14 @@ MAX_UNSEEN = EVALUATE_MAX["unseen"]
 MAX_WORKERS = EVALUATE_MAX["workers"]
 #: Runs driven in lock-step.
 MAX_RUN_BATCH = EVALUATE_MAX["batch"]
-#: Training epochs (and early-stopping patience, in epochs).
-MAX_EPOCHS = 10_000
+#: Training epochs (train's, also dagger's and demo's).
+MAX_EPOCHS = TRAIN_MAX["epochs"]
+#: Epochs without a best before training stops early.
+MAX_PATIENCE = TRAIN_MAX["early_stopping_patience"]
 #: Frames per training batch.
-MAX_BATCH_SIZE = 65_536
+MAX_BATCH_SIZE = TRAIN_MAX["batch_size"]
+#: Threads that feed training batches.
+MAX_TRAIN_WORKERS = TRAIN_MAX["workers"]
 #: DAgger iterations (each records, trains and evaluates).
 MAX_ITERATIONS = 1_000
 #: Off-road events before a recording stops.

@@ -11,7 +11,8 @@ from clonedrive.commands.counts import (
     MAX_BATCH_SIZE,
     MAX_CROP_TOP_PX,
     MAX_EPOCHS,
-    MAX_WORKERS,
+    MAX_PATIENCE,
+    MAX_TRAIN_WORKERS,
     count,
 )
 from clonedrive.model.losses import SPEED_LOSSES
@@ -80,13 +81,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep every sample (no steering histogram balancing)")
     parser.add_argument("--no-augment", dest="augment", action="store_false", default=given,
                         help="no training augmentation")
-    parser.add_argument("--early-stopping", dest="early_stopping_patience", type=count(MAX_EPOCHS),
-                        default=given, metavar="PATIENCE",
+    parser.add_argument("--early-stopping", dest="early_stopping_patience",
+                        type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")
     parser.add_argument("--dropout", type=float, default=given,
                         help=f"dropout rate, 0 = off (default {d.dropout})")
     parser.add_argument("--seed", type=int, default=given, help=f"random seed (default {d.seed})")
-    parser.add_argument("--workers", type=count(MAX_WORKERS), default=given,
+    parser.add_argument("--workers", type=count(MAX_TRAIN_WORKERS), default=given,
                         help=f"batch-preparing threads (default {d.workers})")
     parser.add_argument("--cache", default=given, choices=("auto", "memory", "memmap"),
                         help=f"where decoded images live (default {d.cache})")

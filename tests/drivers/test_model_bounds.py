@@ -9,8 +9,13 @@ from pathlib import Path
 
 import h5py
 import pytest
-from support.hostile_files import keras_with_huge_dense, keras_with_inflating_weights
+from support.hostile_files import (
+    h5_with_huge_dense,
+    keras_with_huge_dense,
+    keras_with_inflating_weights,
+)
 from support.measured import run_measured
+from support.student_models import student_model, write_keras2_h5
 
 from clonedrive.drivers.model_bounds import (
     MAX_PACKING_RATIO,
@@ -105,6 +110,22 @@ def test_a_compressed_hdf5_dataset_that_inflates_is_refused(tiny_h5_path: Path,
         read_model(path)
     assert str(refused.value).startswith(f"{path}: its weights: 128.0 MiB unpacked from ")
     assert f"more than {MAX_PACKING_RATIO} to 1" in str(refused.value)
+
+
+def test_an_h5_config_declaring_a_huge_layer_is_refused(tiny_h5_path: Path,
+                                                       tmp_path: Path) -> None:
+    huge = h5_with_huge_dense(tiny_h5_path, tmp_path / "huge.h5", HUGE_UNITS)
+    with pytest.raises(ModelBoundsError, match=r"its layer configuration declares 5\.\d GiB"):
+        read_model(huge)
+
+
+def test_a_keras2_student_h5_declaring_a_huge_layer_is_refused(tmp_path: Path) -> None:
+    """Keras 1/2 files are rebuilt from their layer list: that build is counted too."""
+    student = write_keras2_h5(tmp_path / "student.h5", student_model(seed=0))
+    huge = h5_with_huge_dense(student, tmp_path / "huge.h5", HUGE_UNITS)
+    with pytest.raises(ModelBoundsError, match=r"its layer configuration declares 6\.\d GiB"):
+        read_model(huge, trust=True)
+    assert read_model(student, trust=True).count_params() > 0
 
 
 def test_real_models_still_load(tiny_model_path: Path, tiny_h5_path: Path) -> None:

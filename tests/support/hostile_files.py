@@ -31,6 +31,20 @@ def keras_with_huge_dense(source: Path, dest: Path, units: int) -> Path:
     return dest
 
 
+def h5_with_huge_dense(source: Path, dest: Path, units: int) -> Path:
+    """A copy of the ``.h5`` model file ``source`` (Keras 1, 2 or 3) whose last ``Dense`` layer
+    declares ``units`` outputs in its ``model_config``; the stored weights stay as they were."""
+    import h5py
+
+    shutil.copy(source, dest)
+    with h5py.File(dest, "a") as handle:
+        config = json.loads(handle.attrs["model_config"])
+        dense = [layer for layer in config["config"]["layers"] if layer["class_name"] == "Dense"]
+        dense[-1]["config"]["units"] = units
+        handle.attrs["model_config"] = json.dumps(config).encode("utf-8")
+    return dest
+
+
 def keras_with_inflating_weights(source: Path, dest: Path, inflated_bytes: int) -> Path:
     """A copy of the ``.keras`` file ``source`` whose weights member is ``inflated_bytes`` of
     zeros, deflated: about a thousandth of that on disk."""

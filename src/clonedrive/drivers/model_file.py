@@ -9,6 +9,9 @@ handing it to Keras, so that each ordinary mistake gets one line naming the file
   itself says "File not found" for a file that exists);
 * a ``.keras`` file that is really HDF5, or the other way round (renamed files);
 * a file larger than :data:`MAX_MODEL_BYTES`, or a config larger than :data:`MAX_CONFIG_BYTES`;
+* a file that would take more memory than it holds -- members or weights that inflate, a
+  configuration declaring more weights than the file stores -- checked before Keras allocates
+  anything (:mod:`clonedrive.drivers.model_bounds`);
 * ``Lambda`` layers (Python code stored in the file): refused unless ``trust`` (the
   ``--trust-model`` flag), which logs :data:`TRUST_WARNING`.
 

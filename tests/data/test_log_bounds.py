@@ -64,3 +64,15 @@ def test_a_log_at_the_limit_is_read_in_bounded_memory(tmp_path: Path) -> None:
     finished = run_measured("check", folder, "--no-decode", "--json")
     assert finished.rc == 0, finished.stderr
     assert finished.peak_rss_mb < LOG_PEAK_MB
+
+
+def test_a_speed_label_sidecar_past_the_row_limit_is_not_read(tmp_path: Path) -> None:
+    from clonedrive.data.speed_labels import LABELS_NAME, read_speed_labels
+
+    (tmp_path / LABELS_NAME).write_bytes(b"c.jpg,1\n" * (MAX_LOG_ROWS + 2))
+    labels = read_speed_labels(tmp_path)
+    assert labels is not None and labels.speeds_mph == {}
+    assert labels.warnings == [
+        f"{tmp_path / LABELS_NAME}: {MAX_LOG_ROWS + 2:,} lines, more than the {MAX_LOG_ROWS:,} "
+        "rows a driving log may have; not read (recorded speeds stand in for the expert's "
+        "target speed)"]

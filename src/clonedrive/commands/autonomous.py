@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from clonedrive.commands.counts import MAX_LAPS, MAX_PORT, count
+from clonedrive.commands.counts import MAX_LAPS, count
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -35,8 +35,7 @@ def add_arguments(parser) -> None:
                              "default): interventions put the car back at it and the time "
                              "limit follows from it")
     parser.add_argument("--host", default=d.client.host, help="drive server host")
-    parser.add_argument("--port", type=count(MAX_PORT),
-                        default=d.client.port, help="drive server port")
+    parser.add_argument("--port", type=int, default=d.client.port, help="drive server port")
     parser.add_argument("--connect-timeout", type=float, default=d.client.connect_timeout_s,
                         metavar="SECONDS",
                         help="keep retrying to reach the drive server this long")

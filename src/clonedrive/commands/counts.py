@@ -50,8 +50,6 @@ MAX_ROWS = MAX_LOG_ROWS
 MAX_CONNECTIONS = 1_024
 #: Rows cut from the top of a camera image: fewer than the image has.
 MAX_CROP_TOP_PX = IMAGE_HEIGHT - 1
-#: TCP ports.
-MAX_PORT = 65_535
 #: Frames per second of a video.
 MAX_FPS = 240.0
 

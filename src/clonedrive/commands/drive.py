@@ -8,7 +8,7 @@ import logging
 import socket
 import sys
 
-from clonedrive.commands.counts import MAX_CONNECTIONS, MAX_PORT, count
+from clonedrive.commands.counts import MAX_CONNECTIONS, count
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
@@ -45,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     defaults = DriveServerConfig()
     parser.add_argument("--host", default=defaults.host,
                         help="IP address to bind; 0.0.0.0 serves other machines")
-    parser.add_argument("--port", type=count(MAX_PORT), default=defaults.port,
+    parser.add_argument("--port", type=int, default=defaults.port,
                         help=f"TCP port (the simulator uses {defaults.port})")
     parser.add_argument("--status-every", type=float, default=defaults.status_interval_s,
                         help="seconds between status lines; 0: none")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from clonedrive.commands.counts import MAX_PORT, count
 from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
 from clonedrive.commands.record import add_log_format_arguments
 from clonedrive.world.names import TRACK_NAMES_HELP
@@ -48,8 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default=d.host,
                         help="IP address to bind; 0.0.0.0 lets anyone on the network with the "
                              "URL drive")
-    parser.add_argument("--port", type=count(MAX_PORT),
-                        default=d.port, help="TCP port (0: any free one)")
+    parser.add_argument("--port", type=int, default=d.port, help="TCP port (0: any free one)")
     parser.add_argument("--view", choices=VIEWS, default=d.view, help="first view")
     parser.add_argument("--stream-quality", type=int, default=d.jpeg_quality, metavar="Q",
                         help="JPEG quality of the live view, 1-100")

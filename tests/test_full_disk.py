@@ -88,3 +88,20 @@ def test_model_writers_on_a_full_disk_name_the_path_and_leave_nothing(
     assert line.startswith(f"clonedrive {verb}: {disk}/")
     assert line.endswith(": no space left on the device (disk full)")
     assert sorted(disk.iterdir()) == [filler]
+
+
+def test_record_on_a_full_disk_names_the_image_and_keeps_its_log_whole(disk: Path) -> None:
+    fill(disk, 16 << 10)
+    out = disk / "rec"
+    finished = run_measured("record", "--track", "lake", "--no-scenery", "--laps", "1",
+                            "--out", out)
+    assert finished.rc == 1
+    assert "Traceback" not in finished.stderr
+    line = last_line(finished.stderr)
+    assert line.startswith(f"clonedrive record: writing the log failed: {out / 'IMG'}/")
+    assert line.endswith(".jpg: no space left on the device (disk full)")
+    assert ".tmp" not in line and not list(out.rglob(".*.tmp.jpg"))
+    log = (out / "driving_log.csv").read_text(encoding="utf-8").splitlines()
+    for row in log[1:]:
+        for image in row.split(",")[:3]:
+            assert (out / "IMG" / Path(image.strip()).name).is_file(), row

@@ -101,7 +101,7 @@ def test_record_on_a_full_disk_names_the_image_and_keeps_its_log_whole(disk: Pat
     assert line.startswith(f"clonedrive record: writing the log failed: {out / 'IMG'}/")
     assert line.endswith(".jpg: no space left on the device (disk full)")
     assert ".tmp" not in line and not list(out.rglob(".*.tmp.jpg"))
-    log = (out / "driving_log.csv").read_text(encoding="utf-8").splitlines()
-    for row in log[1:]:
+    rows = (out / "driving_log.csv").read_text(encoding="utf-8").splitlines()
+    for row in [row for row in rows if not row.startswith("center,")]:
         for image in row.split(",")[:3]:
             assert (out / "IMG" / Path(image.strip()).name).is_file(), row

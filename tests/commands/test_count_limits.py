@@ -83,3 +83,15 @@ def test_a_recipe_is_held_to_the_same_training_maxima(tmp_path) -> None:
     with pytest.raises(ValueError, match=f"epochs must be at most {MAX_COUNTS['epochs']:,}"):
         TrainConfig(epochs=int(HUGE))
     assert TrainConfig(epochs=MAX_COUNTS["epochs"]).epochs == MAX_COUNTS["epochs"]
+
+
+def test_help_states_each_maximum(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"(at most {counts.MAX_EPOCHS:,})" in text
+    assert f"(at most {counts.MAX_BATCH_SIZE:,})" in text
+    with pytest.raises(SystemExit):
+        main(["video", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"(at most {counts.MAX_FPS:g}) (default: 60.0)" in text

@@ -66,6 +66,7 @@ def count(most: int) -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"must be at most {most:,}, got {value:,}")
         return value
 
+    parse.most = most  # --help states it (cli._HelpFormatter)
     return parse
 
 
@@ -81,4 +82,5 @@ def rate(most: float) -> Callable[[str], float]:
             raise argparse.ArgumentTypeError(f"must be at most {most:g}, got {text}")
         return value
 
+    parse.most = most
     return parse

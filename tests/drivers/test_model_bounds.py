@@ -13,12 +13,14 @@ from support.hostile_files import (
     h5_with_huge_dense,
     keras_with_huge_dense,
     keras_with_inflating_weights,
+    keras_with_input_shape,
 )
 from support.measured import run_measured
 from support.student_models import student_model, write_keras2_h5
 
 from clonedrive.drivers.model_bounds import (
     MAX_PACKING_RATIO,
+    MAX_SAMPLE_VALUES,
     MAX_UNPACKED_BYTES,
     ModelBoundsError,
 )
@@ -126,6 +128,17 @@ def test_a_keras2_student_h5_declaring_a_huge_layer_is_refused(tmp_path: Path) -
     with pytest.raises(ModelBoundsError, match=r"its layer configuration declares 6\.\d GiB"):
         read_model(huge, trust=True)
     assert read_model(student, trust=True).count_params() > 0
+
+
+def test_a_huge_declared_input_is_refused_before_anything_is_built(
+        tiny_model_path: Path, tmp_path: Path) -> None:
+    huge = keras_with_input_shape(tiny_model_path, tmp_path / "huge_input.keras",
+                                  [None, 100_000, 100_000, 3])
+    with pytest.raises(ModelBoundsError) as refused:
+        read_model(huge)
+    assert str(refused.value) == (
+        f"{huge}: its layer configuration declares a tensor of shape [None, 100000, 100000, 3] "
+        f"(30,000,000,000 values a sample); the limit is {MAX_SAMPLE_VALUES:,}; not loaded")
 
 
 def test_real_models_still_load(tiny_model_path: Path, tiny_h5_path: Path) -> None:

@@ -19,11 +19,27 @@ WEIGHTS_MEMBER = "model.weights.h5"
 def keras_with_huge_dense(source: Path, dest: Path, units: int) -> Path:
     """A copy of the ``.keras`` file ``source`` whose last ``Dense`` layer declares ``units``
     outputs: the archive stays a few KB, the weights Keras would allocate do not."""
+
+    def change(layers: list[dict]) -> None:
+        [layer for layer in layers if layer["class_name"] == "Dense"][-1]["config"]["units"] = units
+
+    return _keras_with_layers(source, dest, change)
+
+
+def keras_with_input_shape(source: Path, dest: Path, shape: list[int | None]) -> Path:
+    """A copy of the ``.keras`` file ``source`` whose input layer declares ``shape``."""
+
+    def change(layers: list[dict]) -> None:
+        layers[0]["config"]["batch_shape"] = shape
+
+    return _keras_with_layers(source, dest, change)
+
+
+def _keras_with_layers(source: Path, dest: Path, change) -> Path:
     with zipfile.ZipFile(source) as archive:
         members = {info.filename: archive.read(info) for info in archive.infolist()}
     config = json.loads(members["config.json"])
-    dense = [layer for layer in config["config"]["layers"] if layer["class_name"] == "Dense"]
-    dense[-1]["config"]["units"] = units
+    change(config["config"]["layers"])
     members["config.json"] = json.dumps(config).encode("utf-8")
     with zipfile.ZipFile(dest, "w") as archive:
         for name, data in members.items():

@@ -4,14 +4,16 @@ A model file is small on disk, and what it asks for is not: a ``.keras`` archive
 weights member of zeros that inflates a thousandfold, an HDF5 dataset can be compressed the
 same way, and the layer configuration can declare a ``Dense`` layer of a hundred million units,
 whose weights Keras allocates while it builds the network -- before it reads a single stored
-weight. Three checks, in the order :func:`clonedrive.drivers.model_file.read_model` makes them:
+weight. Four checks, in the order :func:`clonedrive.drivers.model_file.read_model` makes them:
 
 1. :func:`check_archive`: the zip members' declared unpacked sizes (from the archive's central
    directory; Python's ``zipfile`` never yields more than that) against
    :data:`MAX_UNPACKED_BYTES`, and each large member against :data:`MAX_PACKING_RATIO`.
 2. :func:`stored_weight_bytes`: the weights the file stores, as HDF5 dataset shapes (metadata
    only, nothing is read), checked the same way: these are what loading reads into memory.
-3. :func:`declared_weight_bytes` and :func:`check_declared`: the network built from its
+3. :func:`check_declared_shapes`: no tensor shape in the configuration holds more than
+   :data:`MAX_SAMPLE_VALUES` values a sample (Keras traces some layers with real tensors).
+4. :func:`declared_weight_bytes` and :func:`check_declared`: the network built from its
    configuration inside a ``keras.StatelessScope``, where Keras creates each variable with its
    shape but without its value (deferred initialisation), so that counting what the
    configuration declares costs nothing. A file declaring more than it stores is refused: its
@@ -42,6 +44,12 @@ RATIO_FLOOR_BYTES = 16 << 20
 DECLARED_SLACK_BYTES = 1 << 20
 #: The member of a ``.keras`` archive that holds the weights (Keras's name).
 WEIGHTS_MEMBER = "model.weights.h5"
+#: Values one sample's tensor may declare (a camera frame is 160 x 320 x 3 = 153,600): Keras
+#: traces shapes with real tensors of the declared size where a layer cannot be traced
+#: without them.
+MAX_SAMPLE_VALUES = 1 << 26
+#: Configuration keys whose value is a tensor's shape.
+SHAPE_KEYS = ("batch_shape", "batch_input_shape", "input_shape", "shape")
 
 
 class ModelBoundsError(ModelFileError):
@@ -100,6 +108,28 @@ def stored_weight_bytes(path: Path, source: Any, packed: int) -> int:
             "limit for a model file; not loaded")
     _check_ratio(path, "its weights", stored, packed)
     return stored
+
+
+def check_declared_shapes(path: Path, config: Any) -> None:
+    """Refuse a configuration that declares a tensor shape of more than
+    :data:`MAX_SAMPLE_VALUES` values per sample (any list of whole numbers under one of
+    :data:`SHAPE_KEYS`, the batch's ``None`` left out), before anything is built."""
+    stack = [config]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, list):
+            stack.extend(node)
+        if not isinstance(node, dict):
+            continue
+        for key, value in node.items():
+            sizes = [size for size in value if isinstance(size, int)] if isinstance(
+                value, list) and key in SHAPE_KEYS else []
+            if sizes and math.prod(max(size, 0) for size in sizes) > MAX_SAMPLE_VALUES:
+                raise ModelBoundsError(
+                    f"{path}: its layer configuration declares a tensor of shape {value} "
+                    f"({math.prod(sizes):,} values a sample); the limit is "
+                    f"{MAX_SAMPLE_VALUES:,}; not loaded")
+            stack.append(value)
 
 
 def declared_weight_bytes(build: Callable[[], Any]) -> int:

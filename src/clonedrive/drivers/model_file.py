@@ -175,6 +175,7 @@ def _check_memory(path: Path, kind: str, config: dict, *, lambdas: list[str],
     from clonedrive.drivers import model_bounds
 
     stored = _stored_weight_bytes(path, kind)
+    model_bounds.check_declared_shapes(path, config)
     safe_mode = not lambdas
     if kind == "zip":
         builders = [model_bounds.keras_archive_network(config, safe_mode=safe_mode)]

@@ -89,7 +89,8 @@ def _examples(lines: tuple[str, ...]) -> str:
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """argparse's "(default: ...)" after each option's help, except on on/off flags (whose
+    """A count's maximum, and argparse's "(default: ...)" after each option's help, except on
+    on/off flags (whose
     default is only the opposite of the flag: "--no-video (default: True)" misleads), on
     options whose default is None (their help says what happens without them) and on help
     that already names its default. Examples and the verb order are shown as written."""
@@ -101,9 +102,13 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
+        most = getattr(action.type, "most", None)  # a count's maximum (commands/counts.py)
+        if most is not None and "at most" not in text:
+            shown = f"{most:,}" if isinstance(most, int) else f"{most:g}"
+            text = f"{text} (at most {shown})" if text else f"at most {shown}"
         if action.nargs == 0 or action.default is None or "default" in text:
             return text
-        return super()._get_help_string(action)
+        return text + super()._get_help_string(action)[len(action.help or ""):]
 
 
 class Terminated(KeyboardInterrupt):

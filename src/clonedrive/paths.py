@@ -98,8 +98,11 @@ FILE_SYSTEM_ERRNOS = {
 
 def describe_os_error(error: OSError) -> str:
     """One line naming the path and what went wrong, for an error of
-    :data:`FILE_SYSTEM_ERRNOS` (others: the error's own text)."""
+    :data:`FILE_SYSTEM_ERRNOS` (others, and errors raised with a reason of their own: the
+    error's own text)."""
     reason = FILE_SYSTEM_ERRNOS.get(error.errno) or error.strerror or str(error)
+    if error.errno is not None and error.strerror and error.strerror != os.strerror(error.errno):
+        reason = error.strerror  # a reason written for this error: the need, what is free
     path = error.filename if error.filename is not None else None
     return f"{os.fsdecode(path)}: {reason}" if path is not None else reason
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.counts import MAX_LAPS, count
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -28,7 +29,7 @@ def add_arguments(parser) -> None:
 
     d = AutonomousConfig()
     parser.add_argument("--track", default=d.track, help=TRACK_NAMES_HELP)
-    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
+    parser.add_argument("--laps", type=count(MAX_LAPS), default=d.laps, help="laps to drive")
     parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
                         help="the drive server's set speed (drive.py's and `clonedrive drive`'s "
                              "default): interventions put the car back at it and the time "

@@ -6,6 +6,7 @@ import json
 import sys
 
 from clonedrive.bench import DEFAULT_SUITE
+from clonedrive.commands.counts import MAX_RUN_BATCH, MAX_WORKERS, count
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
@@ -42,11 +43,11 @@ def add_arguments(parser) -> None:
                         help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE})")
     parser.add_argument("--split", action="append", default=None, metavar="NAME",
                         help="run only this split (repeatable)")
-    parser.add_argument("--workers", type=int, default=None, metavar="N",
+    parser.add_argument("--workers", type=count(MAX_WORKERS), default=None, metavar="N",
                         help="worker processes (default: one per CPU core)")
     parser.add_argument("--ray", default=None, metavar="auto|ADDRESS",
                         help="run the batches as Ray tasks (pip install 'clonedrive[cluster]')")
-    parser.add_argument("--batch", type=int, default=4,
+    parser.add_argument("--batch", type=count(MAX_RUN_BATCH), default=4,
                         help="episodes one worker drives in lock-step")
     parser.add_argument("--offline-data", action="append", default=None, metavar="DIR",
                         help="held-out recordings: report each model's offline MSE beside its "

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from clonedrive.commands.counts import MAX_ROWS, MAX_SHOWN, count
 from clonedrive.commands.model_options import add_model_arguments, load_policy_from_args
 
 HELP = "open-loop check of a model on any Udacity log: RMSE, correlation, baselines, a plot"
@@ -33,9 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None,
                         help="output folder (default: crosscheck/<log folder name>/ beside the "
                              "model)")
-    parser.add_argument("--smooth", type=int, default=defaults.smoothing_frames, metavar="N",
+    parser.add_argument("--smooth", type=count(MAX_SHOWN),
+                        default=defaults.smoothing_frames, metavar="N",
                         help="moving-average window on the human's steering, frames (odd)")
-    parser.add_argument("--max-rows", type=int, default=defaults.max_rows,
+    parser.add_argument("--max-rows", type=count(MAX_ROWS), default=defaults.max_rows,
                         help="at most this many rows (evenly spaced) are predicted")
     parser.add_argument("--json", action="store_true", help="print crosscheck.json's content")
     add_model_arguments(parser)

@@ -5,6 +5,14 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.counts import (
+    MAX_EPOCHS,
+    MAX_ITERATIONS,
+    MAX_LAPS,
+    MAX_UNSEEN,
+    MAX_WORKERS,
+    count,
+)
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -32,7 +40,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("base", help="training run folder (model.keras, config.json, "
                                      "recipe.toml) to start from")
     parser.add_argument("--out", required=True, help="folder to write (reused when re-run)")
-    parser.add_argument("--iterations", type=int, default=d.iterations)
+    parser.add_argument("--iterations", type=count(MAX_ITERATIONS), default=d.iterations)
     parser.add_argument("--beta", type=float, default=d.beta,
                         help="share of steps the expert drives in iteration 1")
     parser.add_argument("--beta-decay", type=float, default=d.beta_decay,
@@ -40,22 +48,23 @@ def add_arguments(parser) -> None:
     parser.add_argument("--track", action="append", default=None, metavar="NAME",
                         help=f"collection track: {TRACK_NAMES_HELP} (repeatable; default "
                              f"{' '.join(d.tracks)})")
-    parser.add_argument("--laps", type=int, default=d.laps, help="laps per track and iteration")
+    parser.add_argument("--laps", type=count(MAX_LAPS),
+                        default=d.laps, help="laps per track and iteration")
     parser.add_argument("--speed", type=float, default=d.speed_mph, metavar="MPH",
                         help="set speed (a cap) for collecting and evaluating")
-    parser.add_argument("--epochs", type=int, default=d.epochs,
+    parser.add_argument("--epochs", type=count(MAX_EPOCHS), default=d.epochs,
                         help="training epochs per iteration, from the previous weights")
     parser.add_argument("--lr", dest="learning_rate", type=float, default=d.learning_rate)
     parser.add_argument("--eval-track", action="append", default=None, metavar="NAME",
                         help=f"evaluation track (repeatable; default {' '.join(d.eval_tracks)})")
-    parser.add_argument("--eval-laps", type=int, default=d.eval_laps)
-    parser.add_argument("--unseen", type=int, default=d.eval_unseen, metavar="N",
+    parser.add_argument("--eval-laps", type=count(MAX_LAPS), default=d.eval_laps)
+    parser.add_argument("--unseen", type=count(MAX_UNSEEN), default=d.eval_unseen, metavar="N",
                         help="also evaluate on N generated tracks never collected on")
     parser.add_argument("--bench-split", action="append", default=None, metavar="SPLIT",
                         help="evaluate each iteration on this benchmark split (repeatable; "
                              "default: the --eval-track and --unseen tracks with evaluate)")
     parser.add_argument("--suite", default=d.bench_suite, help="benchmark suite (--bench-split)")
-    parser.add_argument("--workers", type=int, default=d.workers,
+    parser.add_argument("--workers", type=count(MAX_WORKERS), default=d.workers,
                         help="bench worker processes")
     parser.add_argument("--no-plain", dest="plain", action="store_false",
                         help="skip the plain-cloning comparison")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from clonedrive.commands.counts import MAX_EPOCHS, MAX_UNSEEN, MAX_WORKERS, count
+
 HELP = "record expert data, train, evaluate in closed loop and write the report (the main job)"
 DESCRIPTION = (
     "From an empty folder, follow a recipe: record its data with the expert driver, train a "
@@ -35,16 +37,16 @@ def add_arguments(parser) -> None:
                              f"{defaults.recipe}); the files are in clonedrive/recipes/")
     parser.add_argument("--quick", action="store_true", default=defaults.quick,
                         help="small data, 2 epochs, one short evaluation (exercises every stage)")
-    parser.add_argument("--epochs", type=int, default=defaults.epochs,
+    parser.add_argument("--epochs", type=count(MAX_EPOCHS), default=defaults.epochs,
                         help="override the recipe's training epochs")
-    parser.add_argument("--unseen", type=int, default=defaults.unseen, metavar="N",
+    parser.add_argument("--unseen", type=count(MAX_UNSEEN), default=defaults.unseen, metavar="N",
                         help="number of unseen generated tracks to evaluate on (default: the "
                              "recipe's, 10 for the built-in ones)")
     parser.add_argument("--model", default=defaults.model, choices=DEMO_MODELS,
                         help="override the recipe's network architecture")
     parser.add_argument("--no-video", dest="video", action="store_false", default=defaults.video,
                         help="skip the mp4s")
-    parser.add_argument("--workers", type=int, default=defaults.workers,
+    parser.add_argument("--workers", type=count(MAX_WORKERS), default=defaults.workers,
                         help="worker processes for recording and evaluation (default: one per "
                              "CPU core)")
     parser.add_argument("--seed", type=int, default=defaults.seed,

@@ -8,6 +8,7 @@ import logging
 import socket
 import sys
 
+from clonedrive.commands.counts import MAX_CONNECTIONS, count
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
@@ -48,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"TCP port (the simulator uses {defaults.port})")
     parser.add_argument("--status-every", type=float, default=defaults.status_interval_s,
                         help="seconds between status lines; 0: none")
-    parser.add_argument("--max-connections", type=int, default=defaults.max_connections,
+    parser.add_argument("--max-connections", type=count(MAX_CONNECTIONS),
+                        default=defaults.max_connections,
                         help="clients served at once; more are refused (503)")
     parser.add_argument("--idle-timeout", type=float, default=defaults.idle_timeout_s,
                         metavar="SECONDS",

@@ -86,7 +86,10 @@ def _combine(args: argparse.Namespace, out) -> int:
             ensemble.save(temporary)
             copy_notes(args.models[0], temporary)  # driven as its first member says
     except OSError as error:
-        print(f"clonedrive ensemble: cannot write {out}: {error}", file=sys.stderr)
+        from clonedrive.paths import describe_os_error, with_filename
+
+        print(f"clonedrive ensemble: cannot write {out}: "
+              f"{describe_os_error(with_filename(error, out))}", file=sys.stderr)
         return 1
     kind = "steering and target speed" if has_speed_head(ensemble) else "steering"
     print(f"wrote {out}: the mean {kind} of {len(members)} models "

@@ -67,7 +67,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"clonedrive export: {error}", file=sys.stderr)
         return 1
     except OSError as error:
-        print(f"clonedrive export: cannot write {out}: {error}", file=sys.stderr)
+        from clonedrive.paths import describe_os_error, with_filename
+
+        print(f"clonedrive export: cannot write {out}: "
+              f"{describe_os_error(with_filename(error, out))}", file=sys.stderr)
         return 1
     frames = np.random.default_rng(0).integers(0, 256, (8, *IMAGE_SHAPE), dtype=np.uint8)
     keras_out = model.predict_on_batch(frames.astype(np.float32))

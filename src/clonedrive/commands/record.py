@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from clonedrive.commands.counts import MAX_LAPS, MAX_OFF_ROAD_EVENTS, count
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -50,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--track", default=d.track,
                         help=TRACK_NAMES_HELP)
     parser.add_argument("--style", default=d.style, choices=STYLES, help="how the expert drives")
-    parser.add_argument("--laps", type=int, default=d.laps, help="laps to drive")
+    parser.add_argument("--laps", type=count(MAX_LAPS), default=d.laps, help="laps to drive")
     parser.add_argument("--seconds", type=float, default=d.seconds,
                         help="stop after this many seconds of simulated driving")
     parser.add_argument("--speed", type=float, default=d.speed_mph,
@@ -62,7 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=d.seed, help="seeds the noise, weave and scene")
     parser.add_argument("--offset-fraction", type=float, default=d.offset_fraction,
                         help="left/right styles: fraction of the usable half-width off centre")
-    parser.add_argument("--max-off-road", type=int, default=d.max_off_road_events, metavar="N",
+    parser.add_argument("--max-off-road", type=count(MAX_OFF_ROAD_EVENTS),
+                        default=d.max_off_road_events, metavar="N",
                         help="stop early once the expert has left the road N times")
     add_log_format_arguments(parser)
     parser.add_argument("--start-time", default=d.start_time,

@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+from clonedrive.commands.counts import MAX_SHOWN, count
+
 HELP = "write report.md and a self-contained report.html describing a run folder"
 DESCRIPTION = (
     "Write the run's write-up, in the manner of the Udacity Behavioral Cloning write-up but "
@@ -33,7 +35,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="the run folder")
     parser.add_argument("--out", type=Path, default=None,
                         help="folder for report.md, report.html and report/ (default: RUN_DIR)")
-    parser.add_argument("--max-failures", type=int, default=defaults.max_failures, metavar="N",
+    parser.add_argument("--max-failures", type=count(MAX_SHOWN),
+                        default=defaults.max_failures, metavar="N",
                         help="off-road events shown with their frames")
     parser.add_argument("--real-log", action="append", default=[], metavar="LOG_DIR",
                         help="also check the model on this recorded Udacity log, open and closed "

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.counts import count
+
 HELP = "VisualBackProp saliency overlays: which pixels the network's features respond to"
 DESCRIPTION = (
     "For each image (or evenly spaced center frames of each driving log) write an overlay of "
@@ -20,13 +22,13 @@ EXAMPLES = (
 
 
 def add_arguments(parser) -> None:
-    from clonedrive.model.saliency import DEFAULT_FRAMES_PER_LOG
+    from clonedrive.model.saliency import DEFAULT_FRAMES_PER_LOG, MAX_FRAMES
 
     parser.add_argument("model", help="trained model (.keras or .h5)")
     parser.add_argument("inputs", nargs="+", metavar="IMAGE_OR_LOG",
                         help="320x160 image files, or driving-log folders (driving_log.csv)")
     parser.add_argument("--out", required=True, help="folder for the overlays")
-    parser.add_argument("--frames-per-log", type=int, default=DEFAULT_FRAMES_PER_LOG,
+    parser.add_argument("--frames-per-log", type=count(MAX_FRAMES), default=DEFAULT_FRAMES_PER_LOG,
                         metavar="N", help="center frames taken from each log, evenly spaced")
     parser.add_argument("--json", action="store_true", help="print saliency.json's content")
 

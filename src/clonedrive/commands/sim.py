@@ -7,6 +7,7 @@ import json
 import sys
 from dataclasses import asdict
 
+from clonedrive.commands.counts import MAX_STEPS, count
 from clonedrive.commands.record import add_log_format_arguments
 from clonedrive.udacity_spec import PORT
 from clonedrive.world.names import TRACK_NAMES_HELP
@@ -49,7 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="draw the window with the software renderer (no OpenGL)")
     parser.add_argument("--screenshot", metavar="PATH", default=None,
                         help="after --steps steps, save the window's image (PNG/JPEG) and exit")
-    parser.add_argument("--steps", type=int, default=None,
+    parser.add_argument("--steps", type=count(MAX_STEPS), default=None,
                         help="drive this many 1/15 s steps, then exit (default with "
                              "--screenshot or --offscreen: 30)")
     parser.add_argument("--hold", default="",

@@ -7,6 +7,14 @@ import json
 import sys
 from pathlib import Path
 
+from clonedrive.commands.counts import (
+    MAX_BATCH_SIZE,
+    MAX_CROP_TOP_PX,
+    MAX_EPOCHS,
+    MAX_PATIENCE,
+    MAX_TRAIN_WORKERS,
+    count,
+)
 from clonedrive.model.losses import SPEED_LOSSES
 
 MODEL_CHOICES = ("seed", "pilotnet", "fast")
@@ -55,11 +63,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="run folder to write")
     parser.add_argument("--model", default=given, choices=MODEL_CHOICES,
                         help=f"architecture (default {d.model})")
-    parser.add_argument("--epochs", type=int, default=given,
+    parser.add_argument("--epochs", type=count(MAX_EPOCHS), default=given,
                         help=f"total epochs (default {d.epochs})")
     parser.add_argument("--lr", dest="learning_rate", type=float, default=given,
                         help=f"Adam learning rate (default {d.learning_rate:g})")
-    parser.add_argument("--batch-size", type=int, default=given,
+    parser.add_argument("--batch-size", type=count(MAX_BATCH_SIZE), default=given,
                         help=f"batch size (default {d.batch_size})")
     parser.add_argument("--split", default=given, choices=("random", "blocks", "recording"),
                         help=f"train/validation split (default {d.split})")
@@ -73,13 +81,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep every sample (no steering histogram balancing)")
     parser.add_argument("--no-augment", dest="augment", action="store_false", default=given,
                         help="no training augmentation")
-    parser.add_argument("--early-stopping", dest="early_stopping_patience", type=int,
-                        default=given, metavar="PATIENCE",
+    parser.add_argument("--early-stopping", dest="early_stopping_patience",
+                        type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")
     parser.add_argument("--dropout", type=float, default=given,
                         help=f"dropout rate, 0 = off (default {d.dropout})")
     parser.add_argument("--seed", type=int, default=given, help=f"random seed (default {d.seed})")
-    parser.add_argument("--workers", type=int, default=given,
+    parser.add_argument("--workers", type=count(MAX_TRAIN_WORKERS), default=given,
                         help=f"batch-preparing threads (default {d.workers})")
     parser.add_argument("--cache", default=given, choices=("auto", "memory", "memmap"),
                         help=f"where decoded images live (default {d.cache})")
@@ -99,7 +107,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {d.speed_headroom:g}: off). The policy caps the learned "
                              "speed at the set speed, so the head's scatter on a straight lands "
                              "above the cap, not below (see data/speed_labels.py)")
-    parser.add_argument("--crop-top", dest="crop_top_px", type=int, default=given, metavar="PX",
+    parser.add_argument("--crop-top", dest="crop_top_px", type=count(MAX_CROP_TOP_PX),
+                        default=given, metavar="PX",
                         help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
                              "brake for)")

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from clonedrive.commands.counts import MAX_FPS, rate
+
 HELP = "turn a folder of frames (e.g. saved by `clonedrive drive`) into an mp4"
 DESCRIPTION = (
     "Encode the images of FOLDER, sorted by name, as an H.264 (yuv420p) mp4 named FOLDER.mp4 "
@@ -24,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     defaults = VideoConfig()
     parser.add_argument("folder", help="folder of .jpg/.png frames")
-    parser.add_argument("--fps", type=float, default=defaults.fps,
+    parser.add_argument("--fps", type=rate(MAX_FPS), default=defaults.fps,
                         help="frames per second of the video")
     parser.add_argument("--out", default=defaults.out, help="output file (default: FOLDER.mp4)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")

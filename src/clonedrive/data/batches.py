@@ -10,8 +10,10 @@ file when it would be large); every later epoch reads the cache and decodes no J
 
 from __future__ import annotations
 
+import errno
 import math
 import os
+import shutil
 import threading
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -26,6 +28,7 @@ from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPE
 from clonedrive.images import ImageDecodeError
 from clonedrive.images import read_rgb as read_image_file
 from clonedrive.keras_backend import import_keras
+from clonedrive.paths import with_filename
 from clonedrive.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 
 keras = import_keras()
@@ -38,6 +41,30 @@ DEFAULT_MEMORY_LIMIT_BYTES = 2 * 1024**3
 def read_rgb(path: str | os.PathLike, out: np.ndarray | None = None) -> np.ndarray:
     """Read a camera image file as uint8 RGB (160, 320, 3); ``ImageDecodeError`` if unusable."""
     return read_image_file(path, out, shape=FRAME_SHAPE)
+
+
+def reserved_memmap(path: Path, shape: tuple[int, ...]) -> np.memmap:
+    """A new uint8 ``np.memmap`` file of ``shape`` whose disk blocks are reserved before it is
+    mapped. Writing into a mapping past a full disk does not fail: the kernel kills the
+    process with SIGBUS, with no message. So the free space is checked first (an ``OSError``
+    ENOSPC naming the path, the need and what is free), then the blocks are allocated
+    (``posix_fallocate``; where the file system cannot, the check stands alone)."""
+    need = math.prod(shape)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    free = shutil.disk_usage(path.parent).free + (path.stat().st_size if path.is_file() else 0)
+    if need > free:
+        raise OSError(errno.ENOSPC, f"no space left on device for the image cache: it needs "
+                      f"{need / 2**20:,.1f} MiB, {free / 2**20:,.1f} MiB are free", str(path))
+    with open(path, "wb") as handle:
+        try:
+            if need:
+                os.posix_fallocate(handle.fileno(), 0, need)
+        except OSError as error:
+            if error.errno not in (errno.EOPNOTSUPP, errno.EINVAL):
+                handle.close()
+                path.unlink(missing_ok=True)
+                raise with_filename(error, path) from None
+    return np.memmap(path, dtype=np.uint8, mode="r+", shape=shape)
 
 
 class ImageCache:
@@ -69,8 +96,7 @@ class ImageCache:
         self.memmap_path: Path | None = None
         if memmap_path is not None and len(self.paths) * frame_bytes > memory_limit_bytes:
             self.memmap_path = Path(memmap_path)
-            self.memmap_path.parent.mkdir(parents=True, exist_ok=True)
-            self.frames = np.memmap(self.memmap_path, dtype=np.uint8, mode="w+", shape=shape)
+            self.frames = reserved_memmap(self.memmap_path, shape)
         else:
             self.frames = np.empty(shape, dtype=np.uint8)
         self.filled = np.zeros(len(self.paths), dtype=bool)

@@ -47,6 +47,11 @@ VERIFY_MODES = ("none", "exists", "decode")
 #: Largest driving_log.csv read [bytes]: about 300,000 rows of absolute paths, 5.5 hours at
 #: 15 Hz (the Udacity sample data set is 1.5 MB). Reading one at the cap peaks near 0.6 GB.
 MAX_LOG_BYTES = 64 << 20
+#: Most lines a driving_log.csv may have (header and blank lines included): 9 hours at 15 Hz,
+#: ten times the longest real recording (Udacity logs hold 10,000-50,000 rows). Short rows fit
+#: millions into :data:`MAX_LOG_BYTES`, and each row read costs about 1.5 KB here and more in
+#: ``train`` (1,000,000 rows: 1.5 GB for ``check``), so they are counted before any is parsed.
+MAX_LOG_ROWS = 500_000
 #: Bins of the steering histogram ``record`` and ``check`` print (over [-1, 1]).
 STEERING_HISTOGRAM_BINS = 11
 #: Longest image file name [bytes] that file systems allow.
@@ -202,7 +207,7 @@ def read_driving_log(
     Raises:
         FileNotFoundError: if the CSV itself is missing.
         DrivingLogError: if the file is not a log at all (UTF-16, an image, binary data, over
-            :data:`MAX_LOG_BYTES`). A bad row is skipped and reported in
+            :data:`MAX_LOG_BYTES` or :data:`MAX_LOG_ROWS`). A bad row is skipped and reported in
             ``DrivingLog.skipped``, never raised.
     """
     if verify_images not in VERIFY_MODES:
@@ -218,6 +223,7 @@ def read_driving_log(
     folder = csv_path.parent
     image_folder = folder / IMAGE_FOLDER
     raw = _read_log_bytes(csv_path)
+    _check_line_count(csv_path, raw)
     warnings: list[str] = []
     try:
         text = raw.decode("utf-8-sig")
@@ -281,6 +287,23 @@ def _read_log_bytes(csv_path: Path) -> bytes:
     if b"\x00" in head:
         raise DrivingLogError(f"{csv_path}: not a CSV file: binary data (NUL bytes)")
     return raw
+
+
+def count_lines(raw: bytes) -> int:
+    """Lines in ``raw`` as the reader splits them: LF, CRLF or a lone CR each end one, and
+    text after the last ending is one more."""
+    lines = raw.count(b"\n") + raw.count(b"\r") - raw.count(b"\r\n")
+    return lines + 1 if raw and not raw.endswith((b"\n", b"\r")) else lines
+
+
+def _check_line_count(csv_path: Path, raw: bytes) -> None:
+    """Refuse a log of more than :data:`MAX_LOG_ROWS` lines, counted in the raw bytes before
+    any row is parsed."""
+    lines = count_lines(raw)
+    if lines > MAX_LOG_ROWS:
+        raise DrivingLogError(
+            f"{csv_path}: {lines:,} lines, more than the {MAX_LOG_ROWS:,} rows a driving log "
+            "may have (a real recording has tens of thousands); not read")
 
 
 def _with_speed_labels(folder: Path, rows: list[LogRow], warnings: list[str]) -> list[LogRow]:

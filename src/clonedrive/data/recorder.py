@@ -428,9 +428,11 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
         with open(temp, "wb") as handle:
             handle.write(encoded.data)
         os.replace(temp, path)
-    except OSError as error:
+    except OSError as error:  # named by the image the log refers to, not the temporary name
         temp.unlink(missing_ok=True)
-        raise with_filename(error, temp) from None
+        if error.errno is None:
+            raise
+        raise OSError(error.errno, error.strerror, str(path)) from None
 
 
 class RecordingWriteError(RuntimeError):

@@ -21,6 +21,8 @@ import socket
 from datetime import datetime
 from pathlib import Path
 
+from clonedrive.paths import with_filename
+
 try:
     import fcntl
 except ImportError:  # Windows
@@ -66,8 +68,12 @@ class RecordingLock:
         self._fd = self._acquire_flock() if fcntl is not None else self._acquire_exclusive()
         record = {"pid": os.getpid(), "host": socket.gethostname(), "writer": self.writer,
                   "started": datetime.now().isoformat(timespec="seconds")}
-        os.ftruncate(self._fd, 0)
-        os.write(self._fd, (json.dumps(record) + "\n").encode())
+        try:
+            os.ftruncate(self._fd, 0)
+            os.write(self._fd, (json.dumps(record) + "\n").encode())
+        except OSError as error:  # a full disk: say where, and leave no lock behind
+            self.release()
+            raise with_filename(error, self.path) from None
         if self.stale is not None:
             logger.warning("%s: took over a stale lock: %s PID %s (started %s) is no longer "
                            "running", self.path, _writer_of(self.stale, self.writer),

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.data.driving_log import MAX_LOG_ROWS, count_lines
+
 LABELS_NAME = "target_speed.csv"
 LABELS_HEADER = "center,target_speed_mph"
 #: A labels file larger than this is not read (it would hold far more rows than any log).
@@ -72,8 +74,15 @@ def read_speed_labels(folder: str | os.PathLike) -> SpeedLabels | None:
             f"{path}: {size} bytes is more than {MAX_LABELS_BYTES} ; not read (recorded speeds "
             "stand in for the expert's target speed)")
         return labels
-    text = path.read_bytes().decode("utf-8", errors="replace")
-    for number, line in enumerate(text.splitlines(), start=1):
+    raw = path.read_bytes()
+    if count_lines(raw) > MAX_LOG_ROWS + 1:  # one label per row of the log, and a header
+        labels.warnings.append(
+            f"{path}: {count_lines(raw):,} lines, more than the {MAX_LOG_ROWS:,} rows a driving "
+            "log may have; not read (recorded speeds stand in for the expert's target speed)")
+        return labels
+    text = raw.decode("utf-8", errors="replace")
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")  # as counted
+    for number, line in enumerate(lines, start=1):
         fields = [item.strip() for item in line.split(",")]
         if number == 1 and fields == LABELS_HEADER.split(","):
             continue

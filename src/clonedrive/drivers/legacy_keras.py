@@ -235,11 +235,24 @@ def rebuild(path: str | Path, config: dict | None = None, *,
     instead of recognising it from its bytecode (the way out for an unrecognised one).
     """
     from clonedrive.drivers.model_file import model_config
-    from clonedrive.keras_backend import import_keras
 
     path = Path(path)
     if config is None:
         config, _ = model_config(path, "hdf5")
+    model, replaced = rebuilt_network(path, config, normalisation=normalisation)
+    loaded = load_weights_by_name(model, path)
+    logger.warning(
+        "%s: rebuilt from its layer list without running stored code: %s; weights of %d "
+        "layers loaded by name", path, "; ".join(replaced) or "no Lambda layers", loaded)
+    return model
+
+
+def rebuilt_network(path: Path, config: dict, *,
+                    normalisation: tuple[float, float] | None = None) -> tuple[Any, list[str]]:
+    """(the network :func:`rebuild` makes, before its weights are loaded; the Lambda layers
+    it replaced, described)."""
+    from clonedrive.keras_backend import import_keras
+
     keras = import_keras()
     layer_configs, model_name = _sequential_layers(config, path)
     input_shape = None
@@ -272,12 +285,7 @@ def rebuild(path: str | Path, config: dict | None = None, *,
     outputs = inputs
     for layer in built:
         outputs = layer(outputs)
-    model = keras.Model(inputs, outputs, name=model_name or "rebuilt")
-    loaded = load_weights_by_name(model, path)
-    logger.warning(
-        "%s: rebuilt from its layer list without running stored code: %s; weights of %d "
-        "layers loaded by name", path, "; ".join(replaced) or "no Lambda layers", loaded)
-    return model
+    return keras.Model(inputs, outputs, name=model_name or "rebuilt"), replaced
 
 
 def _sequential_layers(config: dict, path: Path) -> tuple[list, str | None]:

@@ -9,6 +9,9 @@ handing it to Keras, so that each ordinary mistake gets one line naming the file
   itself says "File not found" for a file that exists);
 * a ``.keras`` file that is really HDF5, or the other way round (renamed files);
 * a file larger than :data:`MAX_MODEL_BYTES`, or a config larger than :data:`MAX_CONFIG_BYTES`;
+* a file that would take more memory than it holds -- members or weights that inflate, a
+  configuration declaring more weights than the file stores -- checked before Keras allocates
+  anything (:mod:`clonedrive.drivers.model_bounds`);
 * ``Lambda`` layers (Python code stored in the file): refused unless ``trust`` (the
   ``--trust-model`` flag), which logs :data:`TRUST_WARNING`.
 
@@ -109,6 +112,27 @@ def file_kind(path: Path) -> str:
 
 
 def _read_keras(path: Path, *, trust: bool) -> Any:
+    kind, config, lambdas, legacy = _checked_keras(path, trust=trust)
+    if lambdas:
+        logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
+    if legacy:
+        from clonedrive.drivers import legacy_keras
+
+        return legacy_keras.load(path, config, lambdas=lambdas)
+    return keras_load(path, safe_mode=not lambdas)
+
+
+def check_keras_file(path: str | Path) -> None:
+    """Everything :func:`read_model` checks in a ``.keras`` or ``.h5`` file before loading it
+    (its kind, its configuration, no Lambda layers, the memory it would take), for the code
+    that loads a file with Keras itself (a resumed training run, the report's network table).
+    Raises :class:`ModelFileError`."""
+    _checked_keras(Path(path), trust=False)
+
+
+def _checked_keras(path: Path, *, trust: bool) -> tuple[str, dict, list[str], bool]:
+    """(the file's kind, its configuration, its Lambda layers, whether Keras 1/2 saved it),
+    after every check that needs no model built."""
     kind = file_kind(path)
     suffix = path.suffix.lower()
     if kind == "other":
@@ -130,14 +154,64 @@ def _read_keras(path: Path, *, trust: bool) -> Any:
             "which Keras safe mode refuses to run. If you trust where the file came from, add "
             "--trust-model"
         )
-    if lambdas:
-        logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
-
     from clonedrive.drivers import legacy_keras
 
-    if kind == "hdf5" and legacy_keras.is_legacy_version(keras_version):
-        return legacy_keras.load(path, config, lambdas=lambdas)
-    return keras_load(path, safe_mode=not lambdas)
+    legacy = kind == "hdf5" and legacy_keras.is_legacy_version(keras_version)
+    _check_memory(path, kind, config, lambdas=lambdas, legacy=legacy)
+    return kind, config, lambdas, legacy
+
+
+#: What building a network from a configuration may raise for a file that is not a model
+#: Keras can build (Keras's loader raises the same).
+_BUILD_ERRORS = (ValueError, TypeError, OSError, KeyError, AttributeError, IndexError,
+                 RecursionError, RuntimeError, NotImplementedError)
+
+
+def _check_memory(path: Path, kind: str, config: dict, *, lambdas: list[str],
+                  legacy: bool) -> None:
+    """Refuse a file whose configuration declares more weights than it stores, or whose
+    weights unpack past the limits, before Keras allocates anything
+    (:mod:`clonedrive.drivers.model_bounds`)."""
+    from clonedrive.drivers import model_bounds
+
+    stored = _stored_weight_bytes(path, kind)
+    model_bounds.check_declared_shapes(path, config)
+    safe_mode = not lambdas
+    if kind == "zip":
+        builders = [model_bounds.keras_archive_network(config, safe_mode=safe_mode)]
+    else:
+        builders = [model_bounds.keras_h5_network(config, safe_mode=safe_mode)]
+    if legacy:  # what legacy_keras.load falls back to, and the only way for stored code
+        from clonedrive.drivers.legacy_keras import rebuilt_network
+
+        rebuilt = [lambda: rebuilt_network(path, config)[0]]
+        builders = rebuilt if lambdas else [*rebuilt, *builders]
+    first_error: BaseException | None = None
+    for build in builders:
+        try:
+            declared = model_bounds.declared_weight_bytes(build)
+        except _BUILD_ERRORS as error:
+            first_error = first_error or error
+            continue
+        model_bounds.check_declared(path, declared, stored)
+        return
+    raise ModelFileError(f"{path}: cannot load the model: {_one_line(first_error)}")
+
+
+def _stored_weight_bytes(path: Path, kind: str) -> int:
+    """Bytes of the weights ``path`` stores (HDF5 dataset shapes; the members' unpacked sizes
+    for an archive that stores them otherwise), checked against the limits."""
+    from clonedrive.drivers.model_bounds import WEIGHTS_MEMBER, stored_weight_bytes
+
+    if kind == "hdf5":
+        return stored_weight_bytes(path, path, path.stat().st_size)
+    with zipfile.ZipFile(path) as archive:
+        if WEIGHTS_MEMBER not in archive.namelist():
+            return sum(info.file_size for info in archive.infolist()
+                       if info.filename not in ("config.json", "metadata.json"))
+        info = archive.getinfo(WEIGHTS_MEMBER)
+        with archive.open(info) as member:
+            return stored_weight_bytes(path, member, info.file_size)
 
 
 def keras_load(path: Path, *, safe_mode: bool) -> Any:
@@ -169,8 +243,11 @@ def model_config(path: Path, kind: str) -> tuple[dict, str | None]:
 
 
 def _zip_config(path: Path) -> tuple[str, str | None]:
+    from clonedrive.drivers.model_bounds import check_archive
+
     try:
         with zipfile.ZipFile(path) as archive:
+            check_archive(path, archive)
             names = set(archive.namelist())
             if "config.json" not in names:
                 raise ModelFileError(

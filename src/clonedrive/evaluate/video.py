@@ -22,10 +22,12 @@ Two things cut ffmpeg's share:
 
 from __future__ import annotations
 
+import errno
 import logging
 import math
 import os
 import queue
+import shutil
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -50,6 +52,10 @@ QUEUE_FRAMES = 32
 #: x264's threads per video (one: the CPU is shared with driving; see the module).
 ENCODER_THREADS = 1
 _DONE = object()
+#: Errors of writing a file that name the file system as the reason.
+_FILE_SYSTEM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES)
+#: A disk with less free than this [bytes] is full to ffmpeg, which writes in blocks of MBs.
+FULL_DISK_BYTES = 1 << 20
 
 
 class VideoWriter:
@@ -115,9 +121,11 @@ class VideoWriter:
             return None
         try:
             self._encoder.close()
-        except BaseException:
+            self._check_finished()
+        except BaseException as error:
+            named = self._named(error)
             self._temporary.unlink(missing_ok=True)
-            raise
+            raise named from None
         os.replace(self._temporary, self.path)
         return self.path
 
@@ -184,7 +192,48 @@ class VideoWriter:
     def _raise_feeder_error(self) -> None:
         if self._error is not None:
             error, self._error = self._error, None
-            raise error
+            raise self._named(error)
+
+    def _named(self, error: BaseException) -> BaseException:
+        """``error`` of the encoder's as an ``OSError`` naming the video when the file system
+        is why: ffmpeg dies on a full disk, and Python sees only a broken pipe (ffmpeg's own
+        message goes to stderr, uncaptured), so a disk with next to nothing free counts as
+        full."""
+        if not isinstance(error, OSError | RuntimeError):
+            return error
+        number = getattr(error, "errno", None)
+        if number not in _FILE_SYSTEM_ERRNOS:
+            number = errno.ENOSPC if self._disk_full() else None
+        if number is None:
+            return error
+        named = OSError(number, os.strerror(number), str(self.path))
+        named.__cause__ = error
+        return named
+
+    def _disk_full(self) -> bool:
+        try:
+            return shutil.disk_usage(self.path.parent).free < FULL_DISK_BYTES
+        except OSError:
+            return False
+
+    def _check_finished(self) -> None:
+        """Raise unless the temporary file is a whole video of every frame sent: ffmpeg that
+        fails to finish the file (a full disk while it writes the index) exits with an error
+        that imageio-ffmpeg does not pass on."""
+        import cv2
+
+        capture = cv2.VideoCapture(str(self._temporary))
+        try:
+            frames = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
+        finally:
+            capture.release()
+        if frames == self.frames_written:
+            return
+        number = errno.ENOSPC if self._disk_full() else errno.EIO
+        reason = os.strerror(number) if number == errno.ENOSPC else (
+            f"ffmpeg did not finish the video ({frames} of {self.frames_written} frames "
+            "readable; its message is above)")
+        raise OSError(number, reason, str(self.path))
 
     def _discard(self) -> None:
         if self._encoder is None:

@@ -69,6 +69,10 @@ CACHE_FILE = "image_cache.u8"
 
 #: The largest learning rate training accepts: above it Adam only diverges.
 MAX_LEARNING_RATE = 1.0
+#: The largest count each setting takes, from the command line or a recipe file alike: a
+#: batch, a worker pool or a history is sized from them before training starts.
+MAX_COUNTS = {"epochs": 10_000, "batch_size": 65_536, "early_stopping_patience": 10_000,
+              "workers": 1_024, "balance_bins": 10_000}
 
 
 @dataclass(frozen=True)
@@ -120,6 +124,10 @@ class TrainConfig:
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:
             raise ValueError("early_stopping_patience must be >= 1 or None")
+        for name, most in MAX_COUNTS.items():
+            value = getattr(self, name)
+            if value is not None and value > most:
+                raise ValueError(f"{name} must be at most {most:,}, got {value:,}")
         if not (self.speed_loss_weight >= 0 and math.isfinite(self.speed_loss_weight)):
             raise ValueError(f"speed_loss_weight must be >= 0, got {self.speed_loss_weight}")
         from clonedrive.model.losses import SPEED_LOSSES
@@ -206,8 +214,10 @@ def train(
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
         if epochs_done > 0:
+            from clonedrive.drivers.model_file import check_keras_file
             from clonedrive.model import consistency, losses
 
+            check_keras_file(out / "last.keras")  # bounded before Keras allocates
             model = keras.saving.load_model(
                 out / "last.keras", safe_mode=True,
                 custom_objects={**losses.CUSTOM_OBJECTS, **consistency.CUSTOM_OBJECTS})

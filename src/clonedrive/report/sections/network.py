@@ -16,8 +16,14 @@ def build(ctx: ReportContext) -> list[Section]:
     model_path = train / "model.keras" if train else None
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No `model.keras`: network section skipped.")
+    from clonedrive.drivers.model_bounds import ModelBoundsError
+    from clonedrive.drivers.model_file import check_keras_file
     from clonedrive.keras_backend import import_keras
 
+    try:
+        check_keras_file(model_path)  # a shared run folder's model may ask for all the memory
+    except ModelBoundsError as error:  # (a file that is no model fails as Keras would)
+        return ctx.missing(title, f"`model.keras` refused: {error}")
     keras = import_keras()
     model = keras.saving.load_model(model_path, safe_mode=True, compile=False)
     rows = []

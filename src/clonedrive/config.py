@@ -15,6 +15,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
+from clonedrive.output_files import clear_temporary, open_output
+
 T = TypeVar("T")
 
 #: Largest JSON file :func:`read_json` reads unless the caller sets its own limit [bytes].
@@ -69,7 +71,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     # The writer creates the file, so it gets the usual permissions (umask), not mkstemp's 0600.
     temporary = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
-        yield temporary
+        yield clear_temporary(temporary)  # a link planted at that name is removed, not followed
         os.replace(temporary, path)
     except OSError as error:
         temporary.unlink(missing_ok=True)
@@ -86,13 +88,14 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` via :func:`atomic_path` (no fsync: a crash of the process
     cannot lose it, only a power loss can)."""
     with atomic_path(path) as temporary:
-        temporary.write_bytes(data)
+        with open_output(temporary, "wb") as handle:
+            handle.write(data)
     return Path(path)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` via :func:`atomic_path`, fsynced before the rename."""
-    with atomic_path(path) as temporary, open(temporary, "w", encoding="utf-8") as handle:
+    with atomic_path(path) as temporary, open_output(temporary, "w") as handle:
         handle.write(text)
         handle.flush()
         os.fsync(handle.fileno())

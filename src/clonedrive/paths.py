@@ -14,6 +14,8 @@ import os
 import re
 from pathlib import Path
 
+from clonedrive.output_files import RefusedOutputError, probe_writable
+
 #: Longest file-name stem we make [characters]; file systems allow 255 bytes per component.
 MAX_STEM_CHARS = 80
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -70,11 +72,7 @@ def prepare_output_folder(path: str | os.PathLike, *, option: str = "--out") -> 
     ``OSError`` naming it."""
     path = check_output_folder(path, option=option)
     path.mkdir(parents=True, exist_ok=True)
-    probe = path / f".clonedrive-write-test-{os.getpid()}"
-    try:
-        probe.touch()
-    finally:
-        probe.unlink(missing_ok=True)
+    probe_writable(path, f".clonedrive-write-test-{os.getpid()}")
     return path
 
 
@@ -93,13 +91,17 @@ FILE_SYSTEM_ERRNOS = {
     errno.EEXIST: "already exists",
     errno.ENOENT: "no such file or folder",
     errno.EIO: "input/output error (a failing disk?)",
+    errno.ELOOP: "a symbolic link where an output belongs, or a loop of links",
 }
 
 
 def describe_os_error(error: OSError) -> str:
     """One line naming the path and what went wrong, for an error of
     :data:`FILE_SYSTEM_ERRNOS` (others: the error's own text)."""
-    reason = FILE_SYSTEM_ERRNOS.get(error.errno) or error.strerror or str(error)
+    if isinstance(error, RefusedOutputError):  # its own reason says more than the errno's
+        reason = error.strerror
+    else:
+        reason = FILE_SYSTEM_ERRNOS.get(error.errno) or error.strerror or str(error)
     path = error.filename if error.filename is not None else None
     return f"{os.fsdecode(path)}: {reason}" if path is not None else reason
 

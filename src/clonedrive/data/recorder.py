@@ -72,9 +72,10 @@ from clonedrive.data.driving_log import (
     read_driving_log,
 )
 from clonedrive.data.recording_lock import RecordingLock
-from clonedrive.data.speed_labels import SpeedLabelWriter
+from clonedrive.data.speed_labels import LABELS_NAME, SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.episode.rules import EpisodeRules, Stop
+from clonedrive.output_files import clear_temporary, open_output, refuse_link
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity_spec import JPEG_QUALITY
@@ -425,7 +426,7 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
     if not ok:
         raise RuntimeError(f"OpenCV could not encode the image for {path}")
     try:
-        with open(temp, "wb") as handle:
+        with open_output(clear_temporary(temp), "wb") as handle:
             handle.write(encoded.data)
         os.replace(temp, path)
     except OSError as error:
@@ -447,7 +448,11 @@ def _write_failure(error: BaseException) -> str:
 def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, datetime]:
     """Get ``out`` ready for a new recording session: remove half-written temp images a killed
     recorder left, and choose the first image's time (``start_time``, ISO, or now) so that it
-    follows the last image already logged there. Returns (rows already in the log, start)."""
+    follows the last image already logged there. Returns (rows already in the log, start).
+    A symbolic link at the name of a file the recording reads and writes is refused
+    (:class:`~clonedrive.output_files.RefusedOutputError`) before anything is written."""
+    for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME):
+        refuse_link(out / name)
     existing_rows, last_time = _existing_log(out)
     _remove_temp_images(out)
     return existing_rows, _start_time(start_time, last_time)

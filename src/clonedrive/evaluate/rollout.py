@@ -391,9 +391,12 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
 def _save_frame(image: np.ndarray, path: Path) -> Path:
     import cv2
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-    return path
+    from clonedrive.config import write_bytes_atomic
+
+    ok, encoded = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode the frame for {path}")
+    return write_bytes_atomic(path, encoded.tobytes())  # never through a link at the name
 
 
 def _finish(run: _Run, out: Path) -> dict:

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.images import ImageDecodeError, read_rgb
+from clonedrive.output_files import clear_temporary
 from clonedrive.udacity_spec import CONTROL_HZ
 
 logger = logging.getLogger("clonedrive.video")
@@ -201,6 +202,7 @@ class VideoWriter:
         import imageio_ffmpeg
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        clear_temporary(self._temporary)  # ffmpeg would write through a link planted there
         self._yuv_input = size[0] % 2 == 0 and size[1] % 2 == 0
         self._encoder = imageio_ffmpeg.write_frames(
             str(self._temporary),

@@ -10,7 +10,7 @@ import dataclasses
 import json
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
@@ -105,6 +105,20 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
 def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
     """Write ``data`` as indented JSON, atomically and fsynced (:func:`write_text_atomic`)."""
     return write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
+
+
+def changed_settings(saved: Any, wanted: dict[str, Any], *,
+                     may_change: Iterable[str] = ()) -> list[str]:
+    """Each setting a run folder's saved settings (``saved``, its config.json) hold with
+    another value than ``wanted`` (both JSON-ready dicts, :func:`config_to_dict`), as
+    ``"key OLD -> NEW"``; keys in ``may_change``, and keys only one side has (a folder written
+    by an older version), are not compared. A run that reuses a folder's results must not
+    label them with settings they were not made with."""
+    if not isinstance(saved, dict):
+        return ["config.json is not a JSON object"]
+    skip = set(may_change)
+    return [f"{key} {saved[key]!r} -> {wanted[key]!r}" for key in wanted
+            if key in saved and key not in skip and saved[key] != wanted[key]]
 
 
 def save_config(config: Any, path: str | os.PathLike, **extra: Any) -> Path:

@@ -183,6 +183,9 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     specs = [spec for specs in part_specs for spec in specs]
     part_of = [number for number, specs in enumerate(part_specs) for _ in specs]
     report = _report_header(policy, first, model_path)
+    # A previous evaluation's eval.json goes first: an interrupted run must never leave this
+    # run's config.json beside another run's results marked complete.
+    write_json_atomic(out / "eval.json", report)
     if len(parts) == 1:
         save_config(first, out / "config.json")
     else:

@@ -42,6 +42,7 @@ import numpy as np
 
 from clonedrive.config import (
     atomic_path,
+    changed_settings,
     config_to_dict,
     load_config,
     save_config,
@@ -357,16 +358,11 @@ def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: 
             if state_path.is_file() or (out / "config.json").is_file():
                 logger.warning("%s: no completed epoch to resume from; starting over", out)
             return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
-        saved = config_to_dict(load_run_config(out))
-        wanted = config_to_dict(config)
-        changed = [
-            key for key in saved if key not in _RESUME_MAY_CHANGE and saved[key] != wanted[key]
-        ]
+        changed = changed_settings(config_to_dict(load_run_config(out)), config_to_dict(config),
+                                   may_change=_RESUME_MAY_CHANGE)
         if changed:
-            raise ValueError(
-                f"{out}: cannot resume with different settings: "
-                + ", ".join(f"{key} {saved[key]!r} -> {wanted[key]!r}" for key in changed)
-            )
+            raise ValueError(f"{out}: cannot resume with different settings: "
+                             + ", ".join(changed))
         saved_recipe = load_recipe(out / "recipe.toml")
         if saved_recipe.recordings != recipe.recordings:
             raise ValueError(

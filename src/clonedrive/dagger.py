@@ -60,6 +60,7 @@ import numpy as np
 
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.config import changed_settings, config_to_dict, read_json, write_json_atomic
+from clonedrive.model.train import MAX_LEARNING_RATE
 from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.world.vehicle import check_set_speed
 
@@ -127,14 +128,19 @@ class DaggerConfig:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         if self.eval_unseen < 0:
             raise ValueError(f"eval_unseen must be >= 0, got {self.eval_unseen}")
+        if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity
+            raise ValueError(f"learning_rate must be in (0, {MAX_LEARNING_RATE:g}], got "
+                             f"{self.learning_rate}")
         for name in ("takeover_margin_m", "takeover_preview_s", "takeover_release_cte_m",
-                     "takeover_min_s", "learning_rate"):
+                     "takeover_min_s"):
             if not (getattr(self, name) >= 0 and math.isfinite(getattr(self, name))):
                 raise ValueError(f"{name} must be a finite number >= 0")
         if not 0.0 <= self.plain_noise <= 1.0:
             raise ValueError(f"plain_noise must be in [0, 1], got {self.plain_noise}")
-        if self.max_seconds is not None and not self.max_seconds > 0:
-            raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")
+        if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
+                                                 and self.max_seconds > 0):
+            raise ValueError(f"max_seconds must be a positive number of seconds, got "
+                             f"{self.max_seconds}")
 
     def beta_at(self, iteration: int) -> float:
         """The expert's share of the steps in iteration ``iteration`` (1-based)."""

@@ -54,6 +54,8 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as the "tomli" packa
 
 CAMERA_MODES = ("center", "all")
 DEFAULT_CORRECTION = STEERING_CORRECTION
+#: Side-camera steering corrections a recording may use [steering units].
+CORRECTION_RANGE = (0.0, 1.0)
 #: Sampling period assumed for a row whose image name carries no timestamp (15 Hz), seconds.
 FALLBACK_ROW_PERIOD_S = 1.0 / CONTROL_HZ
 
@@ -288,7 +290,7 @@ def _settings(table: Mapping, source: str, where: str, defaults: Mapping) -> dic
             f"{', '.join(repr(mode) for mode in CAMERA_MODES)}"
         )
     for key, low, high in (
-        ("correction", 0.0, 1.0),
+        ("correction", *CORRECTION_RANGE),
         ("steering_offset", -1.0, 1.0),
         ("weight", 0.0, math.inf),
     ):

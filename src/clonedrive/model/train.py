@@ -50,6 +50,7 @@ from clonedrive.config import (
     write_text_atomic,
 )
 from clonedrive.data.recipe import (
+    CORRECTION_RANGE,
     DEFAULT_CORRECTION,
     Recipe,
     default_recipe_for,
@@ -112,6 +113,11 @@ class TrainConfig:
             raise ValueError(f"cache {self.cache!r}; expected one of: {', '.join(CACHE_MODES)}")
         if self.batch_size < 1 or self.epochs < 1:
             raise ValueError("batch_size and epochs must be >= 1")
+        low, high = CORRECTION_RANGE
+        if not (math.isfinite(self.correction) and low <= self.correction <= high):
+            raise ValueError(f"correction must be in [{low:g}, {high:g}], got {self.correction}")
+        if not (math.isfinite(self.block_s) and self.block_s > 0):
+            raise ValueError(f"block_s must be a positive number of seconds, got {self.block_s}")
         if not 0.0 < self.val_fraction < 1.0:
             raise ValueError(f"val_fraction must be in (0, 1), got {self.val_fraction}")
         if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity

@@ -16,8 +16,9 @@ from pathlib import Path
 import pytest
 from support.cli_process import SRC, refused, run_clonedrive
 
-from clonedrive.config import config_to_dict, write_json_atomic
+from clonedrive.config import config_to_dict, save_config, write_json_atomic
 from clonedrive.dagger import DaggerConfig, check_rerun
+from clonedrive.model.train import TrainConfig
 
 #: Polling interval while waiting for a child process to reach a stage [s].
 POLL_S = 0.05
@@ -54,10 +55,12 @@ def test_an_interrupted_evaluate_leaves_no_old_results_marked_complete(
 
 
 def dagger_base(folder: Path, model: Path) -> Path:
-    """A training run folder as far as dagger looks before it starts: model and recipe."""
+    """A training run folder as far as dagger reads it before it starts: model, config and
+    recipe."""
     folder.mkdir()
     (folder / "model.keras").write_bytes(model.read_bytes())
-    (folder / "recipe.toml").write_text("", encoding="utf-8")
+    save_config(TrainConfig(), folder / "config.json")
+    (folder / "recipe.toml").write_text('[[recording]]\npath = "data"\n', encoding="utf-8")
     return folder
 
 

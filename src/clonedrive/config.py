@@ -107,6 +107,21 @@ def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
     return write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
 
 
+def parse_toml(text: str, *, source: str) -> dict[str, Any]:
+    """The TOML document ``text``, or ``ValueError`` naming ``source``: for text that is not
+    TOML, and for arrays or inline tables nested so deep (100 KB of ``[[[[``) that Python's
+    parser, which recurses once per level, runs out of stack."""
+    import tomllib
+
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: arrays or tables nested too deep to read (more than "
+                         f"about {sys.getrecursionlimit()} levels)") from None
+
+
 def changed_settings(saved: Any, wanted: dict[str, Any], *,
                      may_change: Iterable[str] = ()) -> list[str]:
     """Each setting a run folder's saved settings (``saved``, its config.json) hold with

@@ -495,13 +495,13 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
         raise FileNotFoundError(f"{base} is not a finished training run (model.keras and "
                                 "recipe.toml expected: clonedrive train --out)")
     check_human_recordings(config.human)
+    base_config = load_run_config(base)  # both read before anything is written
+    base_recipe = load_recipe(base / "recipe.toml")
     out = check_output_folder(out_dir)
     settings = {**config_to_dict(config), "base": str(base.resolve())}
     check_rerun(out, settings)
     out.mkdir(parents=True, exist_ok=True)
     write_json_atomic(out / "config.json", settings)
-    base_config = load_run_config(base)
-    base_recipe = load_recipe(base / "recipe.toml")
 
     _say(progress, "[dagger] expert reference laps")
     references = expert_references(config)

@@ -43,14 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import parse_toml
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
 from clonedrive.data.speed_labels import label_or_recorded
 from clonedrive.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser as the "tomli" package
-    import tomli as tomllib
 
 CAMERA_MODES = ("center", "all")
 DEFAULT_CORRECTION = STEERING_CORRECTION
@@ -176,10 +172,7 @@ def parse_recipe(
     text: str, *, source: str = "<recipe>", base_dir: str | os.PathLike = "."
 ) -> Recipe:
     """Parse recipe TOML ``text``; errors name ``source`` and the offending key."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    data = parse_toml(text, source=source)
     return recipe_from_table(data, source=source, base_dir=base_dir)
 
 

@@ -84,6 +84,9 @@ from clonedrive.world.vehicle import check_set_speed
 CONFIG_NAME = "config.json"
 #: Steps queued for the writer thread at most (bounds memory; each holds three images).
 MAX_PENDING_ROWS = 16
+#: Image names count on from the start in simulated time: a start after this would run past
+#: the last date Python can name (9999-12-31) within a recording (a year of driving).
+LATEST_START_TIME = datetime(9999, 1, 1)
 #: Suffix of an image being written (``IMG/.center_..._123.tmp.jpg``), renamed when complete.
 TEMP_SUFFIX = ".tmp.jpg"
 
@@ -130,7 +133,7 @@ class RecordConfig:
             raise ValueError("max_off_road_events and fsync_every_rows must be at least 1")
         check_renderer(self.renderer)
         if self.start_time is not None:
-            datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
+            check_start_time(datetime.fromisoformat(self.start_time))  # ValueError naming it
         self.expert_config()  # the expert's own checks (offset fraction, ...)
         self.conditions()  # an unknown look is named
         self.episode_rules()
@@ -434,6 +437,10 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
         raise with_filename(error, temp) from None
 
 
+class RecordingFolderError(RuntimeError):
+    """The folder's log cannot be continued (its last image's time leaves no room); one line."""
+
+
 class RecordingWriteError(RuntimeError):
     """Writing the recording failed (a full disk, a read-only folder...); every row written
     before is whole. The message is one line naming the file."""
@@ -476,9 +483,23 @@ def _start_time(start_time: str | None, last_time: datetime | None) -> datetime:
     else:
         start = datetime.now()
     start = start.replace(microsecond=start.microsecond // 1000 * 1000)
+    if last_time is not None and last_time >= LATEST_START_TIME:
+        raise RecordingFolderError(
+            f"the log's last image is named for {last_time.isoformat()}: too late to record "
+            f"after it (image names must stay before {LATEST_START_TIME.date().isoformat()}); "
+            "record into another folder")
     if last_time is not None:
         start = max(start, last_time + timedelta(milliseconds=math.ceil(1000 / 15)))
     return start
+
+
+def check_start_time(start: datetime) -> None:
+    """``ValueError`` unless a recording starting at ``start`` can name its images (see
+    :data:`LATEST_START_TIME`)."""
+    if start.replace(tzinfo=None) >= LATEST_START_TIME:
+        raise ValueError(f"start_time {start.isoformat()} is too late: a recording must start "
+                         f"before {LATEST_START_TIME.date().isoformat()} (its image names count "
+                         "on from it)")
 
 
 def _remove_temp_images(out: Path) -> None:

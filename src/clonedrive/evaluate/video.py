@@ -23,7 +23,6 @@ Two things cut ffmpeg's share:
 from __future__ import annotations
 
 import logging
-import math
 import os
 import queue
 import threading
@@ -42,6 +41,9 @@ logger = logging.getLogger("clonedrive.video")
 FRAME_SUFFIXES = (".jpg", ".jpeg", ".png")
 #: Frames per second of a video made from a folder of frames (Udacity's video.py default).
 FOLDER_FPS = 60.0
+#: Frame rates a video may have [frames/s]: ffmpeg's mp4 writer fails far outside them (1e30
+#: overflows its time base), and no player shows more than the upper one.
+FPS_RANGE = (0.01, 1000.0)
 #: x264 speed/size trade-off (``ultrafast`` ... ``veryslow``).
 DEFAULT_PRESET = "ultrafast"
 #: imageio-ffmpeg's quality, 1-10 (libx264 CRF = 51 * (1 - quality / 10): 5 is CRF 25).
@@ -68,8 +70,7 @@ class VideoWriter:
     def __init__(self, path: str | os.PathLike, fps: float = FOLDER_FPS, *,
                  quality: float = DEFAULT_QUALITY,
                  preset: str = DEFAULT_PRESET) -> None:
-        if not fps > 0:
-            raise ValueError(f"fps must be positive, got {fps}")
+        check_fps(fps)
         self.path = Path(path)
         self.fps = float(fps)
         self.quality = float(quality)
@@ -246,6 +247,13 @@ def default_video_path(folder: str | os.PathLike) -> Path:
     return folder.with_name(folder.name + ".mp4")
 
 
+def check_fps(fps: float) -> None:
+    """``ValueError`` naming :data:`FPS_RANGE` for a frame rate outside it (NaN too)."""
+    low, high = FPS_RANGE
+    if not low <= fps <= high:
+        raise ValueError(f"fps must be in [{low:g}, {high:g}] frames per second, got {fps}")
+
+
 @dataclass(frozen=True)
 class VideoConfig:
     """What ``clonedrive video`` encodes: a folder of frames into an mp4."""
@@ -254,8 +262,7 @@ class VideoConfig:
     out: str | None = None  #: the mp4 to write; None: ``FOLDER.mp4`` beside the folder
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive number, got {self.fps}")
+        check_fps(self.fps)
         if self.out is not None and not str(self.out).strip():
             raise ValueError("out must name a file (or be left out for FOLDER.mp4)")
 

@@ -86,3 +86,14 @@ def test_the_write_probe_removes_a_link_at_its_name(tmp_path: Path) -> None:
     probe_writable(tmp_path / "out", ".probe")
     assert not (tmp_path / "out" / ".probe").exists()
     assert unchanged(target, before)
+
+
+def test_a_link_at_a_writer_lock_is_refused_in_one_line(tmp_path: Path,
+                                                        tiny_model_path: Path) -> None:
+    target = tmp_path / "elsewhere.txt"
+    before = planted(tmp_path / "eval", ".clonedrive-writer.lock", target)
+    result = run_clonedrive("evaluate", tiny_model_path, "--track", "lake", "--laps", "1",
+                            "--out", tmp_path / "eval")
+    message = refused(result, "evaluate", 1)
+    assert ".clonedrive-writer.lock" in message and "symbolic link" in message
+    assert unchanged(target, before)

@@ -54,7 +54,11 @@ def test_video_refuses_a_frame_rate_ffmpeg_cannot_write(tmp_path: Path, fps: str
 
 @pytest.mark.parametrize(("change", "named"), [
     (("conditions = [\"clear\"]", "conditions = [{a = 1}]"), "conditions must be a list of"),
-    (("seed = 3", "seed = 99999999999999999999999999"), "seed must be a whole number"),
+    (("seed = 3", "seed = 99999999999999999999999999"), "TOML integers are 64-bit"),
+    (("speeds_mph = [20.0]", "speeds_mph = [" + "9" * 400 + "]"), "split[0].speeds_mph[0] is"),
+    (("[conditions.clear]", "[conditions.clear]\nfog = [0, " + "9" * 400 + "]"),
+     "conditions.clear.fog[1] is an integer of 400 digits"),
+    (("seed = 3", "seed = " + "9" * 5000), "an integer with too many digits"),
     (("seed = 3", "seed = {a = 1}"), "seed must be a whole number"),
     (("[conditions.clear]", "[conditions.clear]\nline = []"), "non-empty list of colours"),
     (("[conditions.clear]", "[conditions.clear]\ndescription = {a = 1}"), "must be a string"),
@@ -66,6 +70,15 @@ def test_bench_refuses_a_table_or_huge_number_where_a_value_belongs(
     suite.write_text(SUITE.replace(*change), encoding="utf-8")
     result = run_clonedrive("bench", tiny_model_path, "--suite", suite, "--out", tmp_path / "b")
     assert named in refused(result, "bench", 2)
+
+
+def test_train_refuses_a_recipe_with_a_huge_integer(tmp_path: Path) -> None:
+    recipe = tmp_path / "data.toml"
+    recipe.write_text(f'[[recording]]\npath = "{FIXTURE}"\ncorrection = {"9" * 400}\n',
+                      encoding="utf-8")
+    message = refused(run_clonedrive("train", "--recipe", recipe, "--out", tmp_path / "t"),
+                      "train", 1)
+    assert "recording[0].correction is an integer" in message
 
 
 def nested(kind: str) -> str:

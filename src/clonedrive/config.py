@@ -109,17 +109,46 @@ def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
 
 def parse_toml(text: str, *, source: str) -> dict[str, Any]:
     """The TOML document ``text``, or ``ValueError`` naming ``source``: for text that is not
-    TOML, and for arrays or inline tables nested so deep (100 KB of ``[[[[``) that Python's
-    parser, which recurses once per level, runs out of stack."""
+    TOML, for arrays or inline tables nested so deep (100 KB of ``[[[[``) that Python's
+    parser, which recurses once per level, runs out of stack, and for an integer outside
+    :data:`TOML_INTEGER_RANGE` (which every float check would meet as an OverflowError)."""
     import tomllib
 
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{source}: not valid TOML: {error}") from None
     except RecursionError:
         raise ValueError(f"{source}: arrays or tables nested too deep to read (more than "
                          f"about {sys.getrecursionlimit()} levels)") from None
+    except ValueError:  # int() of more digits than Python converts (sys.get_int_max_str_digits)
+        raise ValueError(f"{source}: an integer with too many digits; TOML integers are 64-bit "
+                         f"({TOML_INTEGER_RANGE[0]} to {TOML_INTEGER_RANGE[1]})") from None
+    _check_integers(data, source)
+    return data
+
+
+#: TOML's integers are 64-bit signed ("if an integer cannot be represented losslessly, an
+#: error must be thrown", toml.io v1.0.0); Python's parser reads integers of any size.
+TOML_INTEGER_RANGE = (-(2**63), 2**63 - 1)
+
+
+def _check_integers(data: dict[str, Any], source: str) -> None:
+    """``ValueError`` naming the key of the first integer outside TOML's 64 bits (walked
+    without recursion: the document may be nested hundreds of levels deep)."""
+    low, high = TOML_INTEGER_RANGE
+    pending: list[tuple[str, Any]] = [("", data)]
+    while pending:
+        where, value = pending.pop()
+        if isinstance(value, dict):
+            pending += [(f"{where}.{key}" if where else str(key), item)
+                        for key, item in value.items()]
+        elif isinstance(value, list):
+            pending += [(f"{where}[{index}]", item) for index, item in enumerate(value)]
+        elif isinstance(value, int) and not isinstance(value, bool) \
+                and not low <= value <= high:
+            raise ValueError(f"{source}: {where} is an integer of {len(str(abs(value)))} "
+                             f"digits; TOML integers are 64-bit ({low} to {high})")
 
 
 def changed_settings(saved: Any, wanted: dict[str, Any], *,

@@ -194,7 +194,7 @@ def tracebacks(sandbox: Path, model: Path) -> dict:
     table_suite = sandbox / "table_suite.toml"
     table_suite.write_text(SUITE.replace('conditions = ["clear"]', "conditions = [{a = 1}]"))
     huge_suite = sandbox / "huge_suite.toml"
-    huge_suite.write_text(SUITE.replace("seed = 3", "seed = " + "9" * 40))
+    huge_suite.write_text(SUITE.replace("speeds_mph = [20.0]", f"speeds_mph = [{'9' * 400}]"))
     base = _base_run(sandbox, model, deep.read_text(encoding="utf-8"))
     figures = {
         "record --start-time 9999-12-31T23:59:59": run_cli(
@@ -204,7 +204,7 @@ def tracebacks(sandbox: Path, model: Path) -> dict:
                                     "--out", sandbox / "fast.mp4"),
         "bench suite with a table": run_cli("bench", model, "--suite", table_suite,
                                             "--out", sandbox / "tb"),
-        "bench suite with a 40-digit seed": run_cli("bench", model, "--suite", huge_suite,
+        "bench suite with a 400-digit speed": run_cli("bench", model, "--suite", huge_suite,
                                                     "--out", sandbox / "hb"),
         "dagger BASE with a nested recipe.toml": run_cli("dagger", base, "--out",
                                                          sandbox / "nd"),

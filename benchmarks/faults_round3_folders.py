@@ -137,17 +137,17 @@ def suite_text(sandbox: Path, model: Path) -> dict:
     return {**result, "heading_injected": any(line.startswith("# injected") for line in lines)}
 
 
-def float_flags(sandbox: Path) -> dict:
+def float_flags(sandbox: Path, model: Path) -> dict:
     """Values that cannot train: each should exit 2 before any work."""
     recording = FIXTURES / "stationary"
     runs = {f"train {flag} {value}": run_cli("train", recording, "--out", sandbox / "ff",
                                              "--epochs", "1", flag, value)
             for flag, value in (("--lr", "inf"), ("--lr", "1e30"), ("--dropout", "nan"),
                                 ("--block-s", "inf"), ("--correction", "nan"))}
-    runs["dagger --lr 1e30"] = run_cli("dagger", sandbox / "none", "--out", sandbox / "fd",
-                                       "--lr", "1e30")
-    runs["drive --steering-filter nan"] = run_cli("drive", "model.keras", "--steering-filter",
-                                                  "nan")
+    base = _base_run(sandbox, model, '[[recording]]\npath = "data"\n')
+    runs["dagger --lr 1e30"] = run_cli("dagger", base, "--out", sandbox / "fd", "--lr", "1e30")
+    runs["evaluate --steering-filter nan"] = run_cli("evaluate", model, "--steering-filter",
+                                                     "nan", "--out", sandbox / "fe")
     return runs
 
 
@@ -217,17 +217,33 @@ def tracebacks(sandbox: Path, model: Path) -> dict:
     return figures
 
 
+def _bounded(*argv: object, timeout_s: float = 60.0) -> dict:
+    """:func:`run_cli` for a command that may serve until stopped: after ``timeout_s`` it gets
+    Ctrl-C, and ``served`` says so."""
+    child = subprocess.Popen([*CLI, *map(str, argv)], env=ENV, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = child.communicate(timeout=timeout_s)
+        served = False
+    except subprocess.TimeoutExpired:
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate()
+        served = True
+    return {"rc": child.returncode, "traceback": "Traceback" in err, "served": served,
+            "message": (err.strip().splitlines() or [""])[-1][:200]}
+
+
 def claims(sandbox: Path, model: Path) -> dict:
     """replay's --out inside its LOG_DIR, web's --out over its model, a second replay."""
     from clonedrive.data.output_lock import claim_output
 
     log = sandbox / "replay_log"
-    shutil.copytree(FIXTURES / "stationary", log)
+    shutil.copytree(FIXTURES / "mountain_windows_paths", log)  # a log replay drives through
     before = _listing(log)
     inside = run_cli("replay", model, log, "--out", log / "replay")
     member = sandbox / "web_model.keras"
     shutil.copy(model, member)
-    over = run_cli("web", "--model", member, "--port", "0", "--no-scenery", "--out", member)
+    over = _bounded("web", "--model", member, "--port", "0", "--no-scenery", "--out", member)
     with claim_output("replay", sandbox / "held"):
         second = run_cli("replay", model, log, "--out", sandbox / "held")
     return {"replay_out_inside_log": {**inside, "input_changed": _listing(log) != before},
@@ -248,7 +264,7 @@ def folders(sandbox: Path) -> dict:
             "dagger_rerun": dagger_rerun(sandbox, model),
             "newline_names": newline_names(sandbox),
             "suite_text": suite_text(sandbox, model),
-            "float_flags": float_flags(sandbox),
+            "float_flags": float_flags(sandbox, model),
             "strict_reply": strict_reply(),
             "tracebacks": tracebacks(sandbox, model),
             "claims": claims(sandbox, model)}

@@ -21,7 +21,7 @@ def listing(folder: Path) -> list[str]:
 def test_replay_refuses_an_output_inside_a_log_folder(tmp_path: Path,
                                                       tiny_model_path: Path) -> None:
     log = tmp_path / "log"
-    shutil.copytree(FIXTURE, log)
+    shutil.copytree(FIXTURE.parent / "mountain_windows_paths", log)  # replay drives it
     before = listing(log)
     result = run_clonedrive("replay", tiny_model_path, log, "--out", log / "replay")
     message = refused(result, "replay", 1)

@@ -40,6 +40,16 @@ def test_record_refuses_a_link_at_an_output_name(tmp_path: Path, name: str) -> N
     assert not (tmp_path / "rec" / "IMG").exists()  # refused before anything was written
 
 
+def test_record_refuses_a_link_at_the_image_folder(tmp_path: Path) -> None:
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "IMG").symlink_to(elsewhere, target_is_directory=True)
+    message = refused(run_clonedrive(*RECORD, "--out", tmp_path / "rec"), "record", 1)
+    assert "IMG" in message and "symbolic link" in message
+    assert list(elsewhere.iterdir()) == []
+
+
 def test_record_refuses_a_fifo_at_the_log_name(tmp_path: Path) -> None:
     (tmp_path / "rec").mkdir()
     os.mkfifo(tmp_path / "rec" / "driving_log.csv")

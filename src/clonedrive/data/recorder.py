@@ -458,7 +458,7 @@ def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, d
     follows the last image already logged there. Returns (rows already in the log, start).
     A symbolic link at the name of a file the recording reads and writes is refused
     (:class:`~clonedrive.output_files.RefusedOutputError`) before anything is written."""
-    for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME):
+    for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME, IMAGE_FOLDER):
         refuse_link(out / name)
     existing_rows, last_time = _existing_log(out)
     _remove_temp_images(out)

@@ -191,16 +191,18 @@ def load_recipe_file(name_or_path: str | os.PathLike) -> RecipeFile:
 
 def is_whole_recipe(path: str | os.PathLike) -> bool:
     """True for a built-in recipe name or a TOML file with a ``[recipe]`` table (a data-only
-    recipe, data.recipe's format, has none)."""
+    recipe, data.recipe's format, has none). A file that is not TOML (or nests too deep, ...)
+    raises :func:`~clonedrive.config.parse_toml`'s ``ValueError`` now, before any work."""
     if str(path) in BUILT_IN:
         return True
     try:
         size = Path(path).stat().st_size
         if size > MAX_RECIPE_BYTES:
             return False
-        return "recipe" in parse_toml(Path(path).read_text(encoding="utf-8"), source=str(path))
-    except (OSError, ValueError):  # UnicodeDecodeError and parse_toml's refusals too
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):  # refused, with its reason, where it is loaded
         return False
+    return "recipe" in parse_toml(text, source=str(path))
 
 
 def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) -> RecipeFile:

@@ -80,7 +80,7 @@ def test_dagger_refuses_to_reuse_iterations_made_with_other_settings(
     saved = earlier_dagger(out, base, tracks=("lake",), beta=0.5)
     result = run_clonedrive("dagger", base, "--out", out, "--track", "mountain", "--beta", "0.8",
                             "--no-scenery")
-    message = refused(result, "dagger", 2)
+    message = refused(result, "dagger", 1)
     assert "tracks ['lake'] -> ['mountain']" in message and "beta 0.5 -> 0.8" in message
     assert json.loads((out / "config.json").read_text()) == saved  # not relabelled
     assert (out / "iter_01" / "data" / "collect.json").read_text() == '{"labels": 45}'

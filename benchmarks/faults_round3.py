@@ -2,6 +2,11 @@
 clients, doubled headers, one writer per output, outputs over inputs, SIGTERM, planted report
 paths and huge images. Each is a real ``clonedrive`` process or a real socket client.
 
+It also runs the later probes of ``faults_round3_bounds`` (hostile model files and logs, counts,
+a full disk) and ``faults_round3_folders`` (planted links, run folders, names, small
+tracebacks, replay and web claims), and totals them: tracebacks, files changed outside the named
+folders, the largest peak memory.
+
 Run alone: python benchmarks/faults_round3.py (prints its figures, then one line of JSON).
 """
 
@@ -26,11 +31,13 @@ ROOT = Path(__file__).resolve().parents[1]
 FIXTURES = ROOT / "tests" / "fixtures" / "udacity"
 ENV = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
 CLI = [sys.executable, "-m", "clonedrive.cli"]
-#: Runs a command and prints its peak memory [KiB] last on stderr. A child forked from this
+#: Runs a command and prints its peak memory [KiB] last on stderr, on a line of its own even
+#: when the command left a progress bar's line unfinished. A child forked from this
 #: process (Keras loaded) would count this process's pages as its own until it execs.
 _MEASURED = ("import resource, subprocess, sys\n"
              "status = subprocess.run(sys.argv[1:]).returncode\n"
-             "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr)\n"
+             "print('', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, sep='\\n',\n"
+             "      file=sys.stderr)\n"
              "sys.exit(status)\n")
 
 
@@ -295,11 +302,49 @@ def round3() -> dict:
                    "sigterm": sigterm_workers(sandbox, model_path),
                    "planted_report": planted_report(sandbox), "huge_png": huge_png(sandbox),
                    "unseen_count": unseen_count()}
+        figures.update(later_probes(sandbox))
     finally:
         shutil.rmtree(sandbox, ignore_errors=True)
     for name, value in figures.items():
         print(f"  {name}: {json.dumps(value)}")
+    figures["totals"] = probe_totals(figures)
+    print(f"  totals: {json.dumps(figures['totals'])}")
     return figures
+
+
+def later_probes(sandbox: Path) -> dict:
+    """The probes of faults_round3_bounds (memory, full disk, counts) and
+    faults_round3_folders (run folders, planted links, small tracebacks), each in a folder of
+    its own."""
+    from faults_round3_bounds import bounds
+    from faults_round3_folders import folders
+
+    (sandbox / "bounds").mkdir()
+    (sandbox / "folders").mkdir()
+    return {"bounds": bounds(sandbox / "bounds"), "folders": folders(sandbox / "folders")}
+
+
+def probe_totals(figures: dict) -> dict:
+    """Over every probe: how many printed a traceback, how many changed a file outside the
+    folders they were given, and the largest peak memory [MB]."""
+    tracebacks, outside, peaks = 0, 0, []
+
+    def walk(value: object) -> None:
+        nonlocal tracebacks, outside
+        if isinstance(value, dict):
+            tracebacks += value.get("traceback") is True
+            outside += value.get("outside_file_changed") is True
+            if isinstance(value.get("peak_rss_mb"), int | float):
+                peaks.append(value["peak_rss_mb"])
+            for item in value.values():
+                walk(item)
+        elif isinstance(value, list):
+            for item in value:
+                walk(item)
+
+    walk(figures)
+    return {"tracebacks": tracebacks, "outside_files_changed": outside,
+            "max_peak_rss_mb": max(peaks, default=None), "probes_measured": len(peaks)}
 
 
 if __name__ == "__main__":

@@ -109,12 +109,12 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     assert table == [["0", "base"], ["1", "dagger"], ["2", "dagger"], ["1", "plain"],
                      ["2", "plain"]]
     # Re-run on the same folder with another noise: the saved plain data is not reused silently.
-    assert main([*arguments, "--plain-noise", "0.15"]) == 2
+    assert main([*arguments, "--plain-noise", "0.15"]) == 1  # a folder refused: exit 1
     assert "recorded with steering noise 0.0, not the 0.15" in capsys.readouterr().err
     # ... nor data recorded for another label count (a run re-used with more iterations).
     saved = out / "plain" / "data" / "record.json"
     saved.write_text(json.dumps({**json.loads(saved.read_text()), "asked": 60}))
-    assert main([*arguments, "--plain-noise", "0"]) == 2
+    assert main([*arguments, "--plain-noise", "0"]) == 1
     assert "recorded for 60 labels, not the 90 DAgger collected by iteration 2" \
         in capsys.readouterr().err
 

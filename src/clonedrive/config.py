@@ -10,10 +10,12 @@ import dataclasses
 import json
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
+
+from clonedrive.output_files import clear_temporary, open_output
 
 T = TypeVar("T")
 
@@ -69,7 +71,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     # The writer creates the file, so it gets the usual permissions (umask), not mkstemp's 0600.
     temporary = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
     try:
-        yield temporary
+        yield clear_temporary(temporary)  # a link planted at that name is removed, not followed
         os.replace(temporary, path)
     except OSError as error:
         temporary.unlink(missing_ok=True)
@@ -86,13 +88,14 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` via :func:`atomic_path` (no fsync: a crash of the process
     cannot lose it, only a power loss can)."""
     with atomic_path(path) as temporary:
-        temporary.write_bytes(data)
+        with open_output(temporary, "wb") as handle:
+            handle.write(data)
     return Path(path)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` via :func:`atomic_path`, fsynced before the rename."""
-    with atomic_path(path) as temporary, open(temporary, "w", encoding="utf-8") as handle:
+    with atomic_path(path) as temporary, open_output(temporary, "w") as handle:
         handle.write(text)
         handle.flush()
         os.fsync(handle.fileno())
@@ -102,6 +105,64 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
 def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
     """Write ``data`` as indented JSON, atomically and fsynced (:func:`write_text_atomic`)."""
     return write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
+
+
+def parse_toml(text: str, *, source: str) -> dict[str, Any]:
+    """The TOML document ``text``, or ``ValueError`` naming ``source``: for text that is not
+    TOML, for arrays or inline tables nested so deep (100 KB of ``[[[[``) that Python's
+    parser, which recurses once per level, runs out of stack, and for an integer outside
+    :data:`TOML_INTEGER_RANGE` (which every float check would meet as an OverflowError)."""
+    import tomllib
+
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    except RecursionError:
+        raise ValueError(f"{source}: arrays or tables nested too deep to read (more than "
+                         f"about {sys.getrecursionlimit()} levels)") from None
+    except ValueError:  # int() of more digits than Python converts (sys.get_int_max_str_digits)
+        raise ValueError(f"{source}: an integer with too many digits; TOML integers are 64-bit "
+                         f"({TOML_INTEGER_RANGE[0]} to {TOML_INTEGER_RANGE[1]})") from None
+    _check_integers(data, source)
+    return data
+
+
+#: TOML's integers are 64-bit signed ("if an integer cannot be represented losslessly, an
+#: error must be thrown", toml.io v1.0.0); Python's parser reads integers of any size.
+TOML_INTEGER_RANGE = (-(2**63), 2**63 - 1)
+
+
+def _check_integers(data: dict[str, Any], source: str) -> None:
+    """``ValueError`` naming the key of the first integer outside TOML's 64 bits (walked
+    without recursion: the document may be nested hundreds of levels deep)."""
+    low, high = TOML_INTEGER_RANGE
+    pending: list[tuple[str, Any]] = [("", data)]
+    while pending:
+        where, value = pending.pop()
+        if isinstance(value, dict):
+            pending += [(f"{where}.{key}" if where else str(key), item)
+                        for key, item in value.items()]
+        elif isinstance(value, list):
+            pending += [(f"{where}[{index}]", item) for index, item in enumerate(value)]
+        elif isinstance(value, int) and not isinstance(value, bool) \
+                and not low <= value <= high:
+            raise ValueError(f"{source}: {where} is an integer of {len(str(abs(value)))} "
+                             f"digits; TOML integers are 64-bit ({low} to {high})")
+
+
+def changed_settings(saved: Any, wanted: dict[str, Any], *,
+                     may_change: Iterable[str] = ()) -> list[str]:
+    """Each setting a run folder's saved settings (``saved``, its config.json) hold with
+    another value than ``wanted`` (both JSON-ready dicts, :func:`config_to_dict`), as
+    ``"key OLD -> NEW"``; keys in ``may_change``, and keys only one side has (a folder written
+    by an older version), are not compared. A run that reuses a folder's results must not
+    label them with settings they were not made with."""
+    if not isinstance(saved, dict):
+        return ["config.json is not a JSON object"]
+    skip = set(may_change)
+    return [f"{key} {saved[key]!r} -> {wanted[key]!r}" for key in wanted
+            if key in saved and key not in skip and saved[key] != wanted[key]]
 
 
 def save_config(config: Any, path: str | os.PathLike, **extra: Any) -> Path:

@@ -59,12 +59,17 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.config import save_config, write_json_atomic
+from clonedrive.config import changed_settings, config_to_dict, read_json, write_json_atomic
+from clonedrive.model.train import MAX_LEARNING_RATE
 from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.world.vehicle import check_set_speed
 
 DAGGER_JSON = "dagger.json"
 DAGGER_PNG = "dagger.png"
+#: Settings a rerun into a DAgger folder may change: more iterations extend it (iteration k
+#: does not depend on how many follow), workers only share the work, and the plain-cloning
+#: folders check their own recording (noise, label count) before they are reused.
+RERUN_MAY_CHANGE = ("iterations", "workers", "plain", "plain_each", "plain_noise")
 #: Start of the image names of DAgger recordings (reproducible names, like the demo's).
 START_TIME = "2026-01-01T12:00:00"
 
@@ -123,14 +128,19 @@ class DaggerConfig:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         if self.eval_unseen < 0:
             raise ValueError(f"eval_unseen must be >= 0, got {self.eval_unseen}")
+        if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity
+            raise ValueError(f"learning_rate must be in (0, {MAX_LEARNING_RATE:g}], got "
+                             f"{self.learning_rate}")
         for name in ("takeover_margin_m", "takeover_preview_s", "takeover_release_cte_m",
-                     "takeover_min_s", "learning_rate"):
+                     "takeover_min_s"):
             if not (getattr(self, name) >= 0 and math.isfinite(getattr(self, name))):
                 raise ValueError(f"{name} must be a finite number >= 0")
         if not 0.0 <= self.plain_noise <= 1.0:
             raise ValueError(f"plain_noise must be in [0, 1], got {self.plain_noise}")
-        if self.max_seconds is not None and not self.max_seconds > 0:
-            raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")
+        if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
+                                                 and self.max_seconds > 0):
+            raise ValueError(f"max_seconds must be a positive number of seconds, got "
+                             f"{self.max_seconds}")
 
     def beta_at(self, iteration: int) -> float:
         """The expert's share of the steps in iteration ``iteration`` (1-based)."""
@@ -485,11 +495,13 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
         raise FileNotFoundError(f"{base} is not a finished training run (model.keras and "
                                 "recipe.toml expected: clonedrive train --out)")
     check_human_recordings(config.human)
-    out = check_output_folder(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    save_config(config, out / "config.json")
-    base_config = load_run_config(base)
+    base_config = load_run_config(base)  # both read before anything is written
     base_recipe = load_recipe(base / "recipe.toml")
+    out = check_output_folder(out_dir)
+    settings = {**config_to_dict(config), "base": str(base.resolve())}
+    check_rerun(out, settings)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / "config.json", settings)
 
     _say(progress, "[dagger] expert reference laps")
     references = expert_references(config)
@@ -542,6 +554,21 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
                 plain_each.append(entry)
                 _write_report(out, config, rows, None, references, plain_each)
     return _write_report(out, config, rows, plain, references, plain_each)
+
+
+def check_rerun(out: Path, settings: dict) -> None:
+    """``ValueError`` naming each differing setting when ``out`` holds a DAgger run made with
+    other ``settings`` (its config.json) than :data:`RERUN_MAY_CHANGE`: a rerun reuses every
+    finished iteration, which must not then be labelled with settings it was not made with."""
+    path = out / "config.json"
+    if not path.is_file():
+        return
+    changed = changed_settings(read_json(path, what="config file"), settings,
+                               may_change=RERUN_MAY_CHANGE)
+    if changed:
+        raise ValueError(f"{out} holds a DAgger run with other settings ({'; '.join(changed)}), "
+                         "whose iterations would be reused as if made with the new ones; rerun "
+                         "it with its own settings, or choose another --out")
 
 
 def train_plain(config: DaggerConfig, base_config, base_recipe, base_model: Path, labels: int,

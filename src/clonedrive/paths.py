@@ -14,6 +14,8 @@ import os
 import re
 from pathlib import Path
 
+from clonedrive.output_files import probe_writable
+
 #: Longest file-name stem we make [characters]; file systems allow 255 bytes per component.
 MAX_STEM_CHARS = 80
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -70,11 +72,7 @@ def prepare_output_folder(path: str | os.PathLike, *, option: str = "--out") -> 
     ``OSError`` naming it."""
     path = check_output_folder(path, option=option)
     path.mkdir(parents=True, exist_ok=True)
-    probe = path / f".clonedrive-write-test-{os.getpid()}"
-    try:
-        probe.touch()
-    finally:
-        probe.unlink(missing_ok=True)
+    probe_writable(path, f".clonedrive-write-test-{os.getpid()}")
     return path
 
 
@@ -93,6 +91,7 @@ FILE_SYSTEM_ERRNOS = {
     errno.EEXIST: "already exists",
     errno.ENOENT: "no such file or folder",
     errno.EIO: "input/output error (a failing disk?)",
+    errno.ELOOP: "a symbolic link where an output belongs, or a loop of links",
 }
 
 

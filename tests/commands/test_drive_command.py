@@ -44,12 +44,17 @@ def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
 
 def test_bad_steering_filter_or_hold_is_named(tiny_model_path: Path,
                                               capsys: pytest.CaptureFixture) -> None:
-    """``drive`` and ``evaluate`` pass --steering-filter and --steering-hold to the policy."""
+    """``drive`` and ``evaluate`` refuse a --steering-filter or --steering-hold the policy would
+    refuse as a bad flag (argparse: exit 2), naming the limit."""
     model = str(tiny_model_path)
     for verb in ("drive", "evaluate"):
-        assert main([verb, model, "--steering-hold", "1.5"]) != 0
+        with pytest.raises(SystemExit) as exit_hold:
+            main([verb, model, "--steering-hold", "1.5"])
+        assert exit_hold.value.code == 2
         assert "steering hold must be in [0, 1)" in capsys.readouterr().err
-        assert main([verb, model, "--steering-filter", "-1"]) != 0
+        with pytest.raises(SystemExit) as exit_filter:
+            main([verb, model, "--steering-filter", "-1"])
+        assert exit_filter.value.code == 2
         assert "steering filter time constant must be >= 0" in capsys.readouterr().err
 
 

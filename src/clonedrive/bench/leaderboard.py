@@ -7,7 +7,7 @@ import base64
 import html
 from pathlib import Path
 
-from clonedrive.config import write_text_atomic
+from clonedrive.config import atomic_path, write_text_atomic
 
 
 def _pm(figure: dict, digits: int = 1, scale: float = 1.0) -> str:
@@ -116,7 +116,8 @@ def plot(report: dict, out: Path) -> list[Path]:
         ax.legend(fontsize=8)
         fig.tight_layout()
         path = out / name
-        fig.savefig(path, dpi=100)
+        with atomic_path(path) as temporary:  # never through a link at the name
+            fig.savefig(temporary, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths

@@ -179,6 +179,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         "rendering": {**renderer_info(config.renderer), "full_frame": config.full_frame},
         "complete": False,
     }
+    write_json_atomic(out / "bench.json", report)  # a previous run's results are not this one's
     results: dict[int, list[dict]] = {}
     episodes = sum(len(task["episodes"]) for task in tasks)
     bar = progress_bar(total=episodes, unit="episode", desc="bench", enabled=progress)

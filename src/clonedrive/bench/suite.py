@@ -10,11 +10,11 @@ family with the seed ``seed + i``. So a suite is a fixed list of episodes: the s
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from clonedrive.config import parse_toml
 from clonedrive.sim.conditions import ConditionFamily, Conditions
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import TrackError
@@ -137,9 +137,9 @@ def load_suite(name_or_path: str | Path, *, check_tracks: bool = True) -> Suite:
             raise SuiteError(f"{path}: not a UTF-8 text file") from None
         source = str(path)
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise SuiteError(f"{source}: not valid TOML ({error})") from None
+        data = parse_toml(text, source=source)
+    except ValueError as error:
+        raise SuiteError(str(error)) from None
     suite = _parse(data, source)
     if check_tracks:
         for track in sorted({t for split in suite.splits for t in split.tracks}):
@@ -182,8 +182,16 @@ def _parse(data: dict, source: str) -> Suite:
         episodes += len(split.tracks) * len(split.speeds_mph) * len(split.conditions)
     if episodes > MAX_EPISODES:
         raise SuiteError(f"{source}: {episodes} episodes; a suite holds at most {MAX_EPISODES}")
-    return Suite(id=suite_id, description=str(data.get("description", "")), laps=laps,
+    return Suite(id=suite_id, description=_description(data, source), laps=laps,
                  splits=tuple(splits), families=families, source=source)
+
+
+def _description(table: dict, where: str) -> str:
+    """The table's ``description``: text, or none."""
+    text = table.get("description", "")
+    if not isinstance(text, str):
+        raise SuiteError(f"{where}: description must be a string, got {type(text).__name__}")
+    return text
 
 
 def _parse_split(table: object, where: str, families: dict) -> Split:
@@ -210,12 +218,15 @@ def _parse_split(table: object, where: str, families: dict) -> Split:
     if not isinstance(conditions, list) or not conditions:
         raise SuiteError(f"{where}: conditions must be a non-empty list of family names")
     for family in conditions:
+        if not isinstance(family, str):
+            raise SuiteError(f"{where}: conditions must be a list of family names, got "
+                             f"{family!r}")
         if family not in families:
             raise SuiteError(f"{where}: conditions {family!r} is not defined; the suite "
                              f"defines {', '.join(families) or 'none'} ([conditions.NAME])")
     seed = table.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
         raise SuiteError(f"{where}: seed must be a whole number >= 0")
-    return Split(name=name, description=str(table.get("description", "")), tracks=tuple(tracks),
+    return Split(name=name, description=_description(table, where), tracks=tuple(tracks),
                  speeds_mph=tuple(float(v) for v in speeds), conditions=tuple(conditions),
                  seed=seed)

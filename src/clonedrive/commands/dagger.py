@@ -112,11 +112,15 @@ def run(args) -> int:
             renderer=args.renderer, full_frame=args.full_frame)
         for name in (*config.tracks, *config.eval_tracks):
             load_track(name)
-        with claim_output("dagger", args.out, inputs=[args.base]):
-            report = run_dagger(config, args.base, args.out, progress=not args.json)
-    except (ValueError, FileNotFoundError, TrackError) as error:
+    except (ValueError, TrackError) as error:  # a flag
         print(f"clonedrive dagger: {error}", file=sys.stderr)
         return 2
+    try:  # the base run, the output folder and what an earlier run left there
+        with claim_output("dagger", args.out, inputs=[args.base]):
+            report = run_dagger(config, args.base, args.out, progress=not args.json)
+    except (ValueError, FileNotFoundError) as error:
+        print(f"clonedrive dagger: {error}", file=sys.stderr)
+        return 1
     if args.json:
         print(json.dumps(report, indent=2))
     else:

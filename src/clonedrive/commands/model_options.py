@@ -34,11 +34,11 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
     ``--slow-in-curves``: what stands between the network and the controls
     (:class:`clonedrive.drivers.driving_settings.DrivingSettings`). Each left out takes the
     setting stored in the model file (drive.py's, all off, for a file without them)."""
-    parser.add_argument("--steering-filter", type=float, default=None, metavar="S",
+    parser.add_argument("--steering-filter", type=_steering_filter_s, default=None, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
                              "(0.1 = the expert's hand; 0 = off, as drive.py; default: the "
                              "model's own setting)")
-    parser.add_argument("--steering-hold", type=float, default=None, metavar="H",
+    parser.add_argument("--steering-hold", type=_steering_hold, default=None, metavar="H",
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
                              "delay; 0 = off, as drive.py; default: the model's own setting)")
@@ -54,6 +54,30 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                                  "|steering| grows, down to 40%% of the set speed (default: "
                                  "the model's own setting; off for a model without one, as "
                                  "drive.py)")
+
+
+def _steering_filter_s(text: str) -> float:
+    """``--steering-filter``'s value, refused by argparse (exit 2) where the filter refuses it
+    (NaN, infinity, negative)."""
+    from clonedrive.drivers.network import SteeringFilter
+
+    return _checked_float(text, lambda value: SteeringFilter(time_constant_s=value))
+
+
+def _steering_hold(text: str) -> float:
+    """``--steering-hold``'s value, refused by argparse (exit 2) outside [0, 1)."""
+    from clonedrive.drivers.network import SteeringFilter
+
+    return _checked_float(text, lambda value: SteeringFilter(hold=value))
+
+
+def _checked_float(text: str, check) -> float:
+    try:
+        value = float(text)
+        check(value)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return value
 
 
 def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_options):

@@ -82,7 +82,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.data.recorder import RecordConfig, RecordingWriteError, record
+    from clonedrive.data.recorder import (
+        RecordConfig,
+        RecordingFolderError,
+        RecordingWriteError,
+        record,
+    )
     from clonedrive.world.track import TrackError
 
     problem = renderer_error(args, "record")
@@ -104,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, TrackError) as error:
         print(f"clonedrive record: {error}", file=sys.stderr)
         return 2
-    except RecordingWriteError as error:  # a full disk: the rows written so far are whole
+    except (RecordingWriteError, RecordingFolderError) as error:  # a full disk: rows are whole
         print(f"clonedrive record: {error}", file=sys.stderr)
         return 1
     if args.json:

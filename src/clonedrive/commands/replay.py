@@ -59,10 +59,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.data.driving_log import DrivingLogError
+    from clonedrive.commands.output_claim import claim
     from clonedrive.paths import check_output_folder, safe_stem
     from clonedrive.replay.episode import ReplayConfig
-    from clonedrive.replay.output import format_summary, replay
+    from clonedrive.replay.output import format_summary
 
     try:
         config = ReplayConfig(max_offset_m=args.max_offset, calibrate=not args.no_calibrate)
@@ -74,11 +74,15 @@ def run(args: argparse.Namespace) -> int:
         Path(args.model).resolve().parent / "replay" / safe_stem(first.resolve().name))
     try:
         check_output_folder(out)
-        policy = load_policy_from_args(args, args.model)
-        report = replay(policy, args.log_dirs, out, config, video=args.video,
-                        model_path=str(args.model))
-    except (FileNotFoundError, ValueError, DrivingLogError) as error:
+    except ValueError as error:
         print(f"clonedrive replay: {error}", file=sys.stderr)
+        return 1
+    lock = claim("replay", out, inputs=[args.model, *args.log_dirs])
+    if lock is None:  # another replay writes there, or it is (inside) an input
+        return 1
+    with lock:
+        report = _replay(args, out, config)
+    if report is None:
         return 1
     if args.json:
         print(json.dumps(report, indent=2))
@@ -86,3 +90,17 @@ def run(args: argparse.Namespace) -> int:
         print(format_summary(report))
         print("wrote " + ", ".join(str(out / name) for name in report["files"].values()))
     return 0
+
+
+def _replay(args: argparse.Namespace, out: Path, config) -> dict | None:
+    """replay.json's content, or None after printing why the model or a log was refused."""
+    from clonedrive.data.driving_log import DrivingLogError
+    from clonedrive.replay.output import replay
+
+    try:
+        policy = load_policy_from_args(args, args.model)
+        return replay(policy, args.log_dirs, out, config, video=args.video,
+                      model_path=str(args.model))
+    except (FileNotFoundError, ValueError, DrivingLogError) as error:
+        print(f"clonedrive replay: {error}", file=sys.stderr)
+        return None

@@ -209,11 +209,11 @@ class _BadOption(ValueError):
     """An option value TrainConfig refuses (exit status 2, as argparse's own)."""
 
 
-def _settings(make):
+def _settings(make, *, source: str | None = None):
     try:
         return make()
     except ValueError as error:
-        raise _BadOption(str(error)) from None
+        raise _BadOption(f"{source}: {error}" if source else str(error)) from None
 
 
 def _plan(args: argparse.Namespace):
@@ -225,6 +225,8 @@ def _plan(args: argparse.Namespace):
     from clonedrive.model.train import TrainConfig, load_run_config
     from clonedrive.recipes.book import DEFAULT_RECIPE, is_whole_recipe, load_recipe_file
 
+    # The options alone first, so that a refused value is named as the command line's.
+    _settings(lambda: TrainConfig(**_overrides(args, TrainConfig)), source="command line")
     if args.resume and (args.out / "config.json").is_file():
         source = (Path(args.recipe) if _is_file(args.recipe) and not is_whole_recipe(args.recipe)
                   else None) or (args.dirs or None) or args.out / "recipe.toml"

@@ -77,9 +77,20 @@ def run(args: argparse.Namespace) -> int:
             policy = load_policy_from_args(args, args.model, **options)
         except (FileNotFoundError, ValueError) as error:
             return _fail(str(error))
+    from clonedrive.commands.output_claim import claim
+
+    lock = claim("web", args.out, inputs=[args.model] if args.model else [])
+    if lock is None:  # another web server records there, or --out is (inside) the model
+        return 1
+    with lock:
+        return _serve(config, setup, policy, args.model, manual)
+
+
+def _serve(config, setup, policy, model: str | None, manual) -> int:
+    """Serve the page until Ctrl-C; its --out held by the caller."""
     from clonedrive.web.app import WebApp
 
-    app = WebApp(config, setup, policy=policy, model_name=args.model or "model",
+    app = WebApp(config, setup, policy=policy, model_name=model or "model",
                  manual_config=manual)
     try:
         app.open()

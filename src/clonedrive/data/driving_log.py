@@ -31,6 +31,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from clonedrive.images import ImageDecodeError, decode_rgb
+from clonedrive.output_files import open_output_fd
 from clonedrive.paths import with_filename
 from clonedrive.udacity_spec import IMAGE_SHAPE
 
@@ -522,10 +523,11 @@ class DrivingLogWriter:
         (self.folder / IMAGE_FOLDER).mkdir(parents=True, exist_ok=True)
 
         existed = self.csv_path.exists()
-        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | getattr(os, "O_BINARY", 0)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
         if not append:
             flags |= os.O_TRUNC
-        self._fd: int | None = os.open(self.csv_path, flags, 0o644)
+        # Never append through a link planted at the log's name (output_files).
+        self._fd: int | None = open_output_fd(self.csv_path, flags)
         if append and existed:
             self._repair_tail()
         if not existed and os.name == "posix":

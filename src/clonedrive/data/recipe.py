@@ -43,17 +43,15 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.config import parse_toml
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
 from clonedrive.data.speed_labels import label_or_recorded
 from clonedrive.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser as the "tomli" package
-    import tomli as tomllib
-
 CAMERA_MODES = ("center", "all")
 DEFAULT_CORRECTION = STEERING_CORRECTION
+#: Side-camera steering corrections a recording may use [steering units].
+CORRECTION_RANGE = (0.0, 1.0)
 #: Sampling period assumed for a row whose image name carries no timestamp (15 Hz), seconds.
 FALLBACK_ROW_PERIOD_S = 1.0 / CONTROL_HZ
 
@@ -174,10 +172,7 @@ def parse_recipe(
     text: str, *, source: str = "<recipe>", base_dir: str | os.PathLike = "."
 ) -> Recipe:
     """Parse recipe TOML ``text``; errors name ``source`` and the offending key."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    data = parse_toml(text, source=source)
     return recipe_from_table(data, source=source, base_dir=base_dir)
 
 
@@ -288,7 +283,7 @@ def _settings(table: Mapping, source: str, where: str, defaults: Mapping) -> dic
             f"{', '.join(repr(mode) for mode in CAMERA_MODES)}"
         )
     for key, low, high in (
-        ("correction", 0.0, 1.0),
+        ("correction", *CORRECTION_RANGE),
         ("steering_offset", -1.0, 1.0),
         ("weight", 0.0, math.inf),
     ):

@@ -72,9 +72,10 @@ from clonedrive.data.driving_log import (
     read_driving_log,
 )
 from clonedrive.data.recording_lock import RecordingLock
-from clonedrive.data.speed_labels import SpeedLabelWriter
+from clonedrive.data.speed_labels import LABELS_NAME, SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.episode.rules import EpisodeRules, Stop
+from clonedrive.output_files import clear_temporary, open_output, refuse_link
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity_spec import JPEG_QUALITY
@@ -83,6 +84,9 @@ from clonedrive.world.vehicle import check_set_speed
 CONFIG_NAME = "config.json"
 #: Steps queued for the writer thread at most (bounds memory; each holds three images).
 MAX_PENDING_ROWS = 16
+#: Image names count on from the start in simulated time: a start after this would run past
+#: the last date Python can name (9999-12-31) within a recording (a year of driving).
+LATEST_START_TIME = datetime(9999, 1, 1)
 #: Suffix of an image being written (``IMG/.center_..._123.tmp.jpg``), renamed when complete.
 TEMP_SUFFIX = ".tmp.jpg"
 
@@ -129,7 +133,7 @@ class RecordConfig:
             raise ValueError("max_off_road_events and fsync_every_rows must be at least 1")
         check_renderer(self.renderer)
         if self.start_time is not None:
-            datetime.fromisoformat(self.start_time)  # raises ValueError naming the text
+            check_start_time(datetime.fromisoformat(self.start_time))  # ValueError naming it
         self.expert_config()  # the expert's own checks (offset fraction, ...)
         self.conditions()  # an unknown look is named
         self.episode_rules()
@@ -425,7 +429,7 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
     if not ok:
         raise RuntimeError(f"OpenCV could not encode the image for {path}")
     try:
-        with open(temp, "wb") as handle:
+        with open_output(clear_temporary(temp), "wb") as handle:
             handle.write(encoded.data)
         os.replace(temp, path)
     except OSError as error:  # named by the image the log refers to, not the temporary name
@@ -433,6 +437,10 @@ def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
         if error.errno is None:
             raise
         raise OSError(error.errno, error.strerror, str(path)) from None
+
+
+class RecordingFolderError(RuntimeError):
+    """The folder's log cannot be continued (its last image's time leaves no room); one line."""
 
 
 class RecordingWriteError(RuntimeError):
@@ -449,7 +457,11 @@ def _write_failure(error: BaseException) -> str:
 def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, datetime]:
     """Get ``out`` ready for a new recording session: remove half-written temp images a killed
     recorder left, and choose the first image's time (``start_time``, ISO, or now) so that it
-    follows the last image already logged there. Returns (rows already in the log, start)."""
+    follows the last image already logged there. Returns (rows already in the log, start).
+    A symbolic link at the name of a file the recording reads and writes is refused
+    (:class:`~clonedrive.output_files.RefusedOutputError`) before anything is written."""
+    for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME, IMAGE_FOLDER):
+        refuse_link(out / name)
     existing_rows, last_time = _existing_log(out)
     _remove_temp_images(out)
     return existing_rows, _start_time(start_time, last_time)
@@ -473,9 +485,23 @@ def _start_time(start_time: str | None, last_time: datetime | None) -> datetime:
     else:
         start = datetime.now()
     start = start.replace(microsecond=start.microsecond // 1000 * 1000)
+    if last_time is not None and last_time >= LATEST_START_TIME:
+        raise RecordingFolderError(
+            f"the log's last image is named for {last_time.isoformat()}: too late to record "
+            f"after it (image names must stay before {LATEST_START_TIME.date().isoformat()}); "
+            "record into another folder")
     if last_time is not None:
         start = max(start, last_time + timedelta(milliseconds=math.ceil(1000 / 15)))
     return start
+
+
+def check_start_time(start: datetime) -> None:
+    """``ValueError`` unless a recording starting at ``start`` can name its images (see
+    :data:`LATEST_START_TIME`)."""
+    if start.replace(tzinfo=None) >= LATEST_START_TIME:
+        raise ValueError(f"start_time {start.isoformat()} is too late: a recording must start "
+                         f"before {LATEST_START_TIME.date().isoformat()} (its image names count "
+                         "on from it)")
 
 
 def _remove_temp_images(out: Path) -> None:

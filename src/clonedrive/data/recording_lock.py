@@ -21,6 +21,7 @@ import socket
 from datetime import datetime
 from pathlib import Path
 
+from clonedrive.output_files import open_output_fd
 from clonedrive.paths import with_filename
 
 try:
@@ -29,8 +30,6 @@ except ImportError:  # Windows
     fcntl = None
 
 LOCK_NAME = ".clonedrive-recording.lock"
-#: Never open a lock file through a symbolic link someone planted at its name.
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 logger = logging.getLogger(__name__)
 
@@ -105,7 +104,7 @@ class RecordingLock:
 
     def _acquire_flock(self) -> int:
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o644)
+            fd = open_output_fd(self.path, os.O_RDWR | os.O_CREAT)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -131,7 +130,7 @@ class RecordingLock:
 
     def _acquire_exclusive(self) -> int:
         try:
-            return os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
+            return open_output_fd(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL)
         except FileExistsError:
             pass
         try:

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.data.driving_log import MAX_LOG_ROWS, count_lines
+from clonedrive.output_files import open_output_fd
 
 LABELS_NAME = "target_speed.csv"
 LABELS_HEADER = "center,target_speed_mph"
@@ -115,8 +116,8 @@ class SpeedLabelWriter:
     def __init__(self, folder: str | os.PathLike) -> None:
         self.path = Path(folder) / LABELS_NAME
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | getattr(os, "O_BINARY", 0)
-        self._fd: int | None = os.open(self.path, flags, 0o644)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
+        self._fd: int | None = open_output_fd(self.path, flags)  # no link, no FIFO
         size = os.fstat(self._fd).st_size
         if size == 0:
             self._write(LABELS_HEADER)

@@ -183,6 +183,9 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     specs = [spec for specs in part_specs for spec in specs]
     part_of = [number for number, specs in enumerate(part_specs) for _ in specs]
     report = _report_header(policy, first, model_path)
+    # A previous evaluation's eval.json goes first: an interrupted run must never leave this
+    # run's config.json beside another run's results marked complete.
+    write_json_atomic(out / "eval.json", report)
     if len(parts) == 1:
         save_config(first, out / "config.json")
     else:
@@ -391,9 +394,12 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
 def _save_frame(image: np.ndarray, path: Path) -> Path:
     import cv2
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-    return path
+    from clonedrive.config import write_bytes_atomic
+
+    ok, encoded = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode the frame for {path}")
+    return write_bytes_atomic(path, encoded.tobytes())  # never through a link at the name
 
 
 def _finish(run: _Run, out: Path) -> dict:

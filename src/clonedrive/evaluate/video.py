@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import errno
 import logging
-import math
 import os
 import queue
 import shutil
@@ -36,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.images import ImageDecodeError, read_rgb
+from clonedrive.output_files import clear_temporary
 from clonedrive.udacity_spec import CONTROL_HZ
 
 logger = logging.getLogger("clonedrive.video")
@@ -43,6 +43,9 @@ logger = logging.getLogger("clonedrive.video")
 FRAME_SUFFIXES = (".jpg", ".jpeg", ".png")
 #: Frames per second of a video made from a folder of frames (Udacity's video.py default).
 FOLDER_FPS = 60.0
+#: Frame rates a video may have [frames/s]: ffmpeg's mp4 writer fails far outside them (1e30
+#: overflows its time base), and no player shows more than the upper one.
+FPS_RANGE = (0.01, 1000.0)
 #: x264 speed/size trade-off (``ultrafast`` ... ``veryslow``).
 DEFAULT_PRESET = "ultrafast"
 #: imageio-ffmpeg's quality, 1-10 (libx264 CRF = 51 * (1 - quality / 10): 5 is CRF 25).
@@ -73,8 +76,7 @@ class VideoWriter:
     def __init__(self, path: str | os.PathLike, fps: float = FOLDER_FPS, *,
                  quality: float = DEFAULT_QUALITY,
                  preset: str = DEFAULT_PRESET) -> None:
-        if not fps > 0:
-            raise ValueError(f"fps must be positive, got {fps}")
+        check_fps(fps)
         self.path = Path(path)
         self.fps = float(fps)
         self.quality = float(quality)
@@ -250,6 +252,7 @@ class VideoWriter:
         import imageio_ffmpeg
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        clear_temporary(self._temporary)  # ffmpeg would write through a link planted there
         self._yuv_input = size[0] % 2 == 0 and size[1] % 2 == 0
         self._encoder = imageio_ffmpeg.write_frames(
             str(self._temporary),
@@ -293,6 +296,13 @@ def default_video_path(folder: str | os.PathLike) -> Path:
     return folder.with_name(folder.name + ".mp4")
 
 
+def check_fps(fps: float) -> None:
+    """``ValueError`` naming :data:`FPS_RANGE` for a frame rate outside it (NaN too)."""
+    low, high = FPS_RANGE
+    if not low <= fps <= high:
+        raise ValueError(f"fps must be in [{low:g}, {high:g}] frames per second, got {fps}")
+
+
 @dataclass(frozen=True)
 class VideoConfig:
     """What ``clonedrive video`` encodes: a folder of frames into an mp4."""
@@ -301,8 +311,7 @@ class VideoConfig:
     out: str | None = None  #: the mp4 to write; None: ``FOLDER.mp4`` beside the folder
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive number, got {self.fps}")
+        check_fps(self.fps)
         if self.out is not None and not str(self.out).strip():
             raise ValueError("out must name a file (or be left out for FOLDER.mp4)")
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from clonedrive.config import (
     atomic_path,
+    changed_settings,
     config_to_dict,
     load_config,
     save_config,
@@ -49,6 +50,7 @@ from clonedrive.config import (
     write_text_atomic,
 )
 from clonedrive.data.recipe import (
+    CORRECTION_RANGE,
     DEFAULT_CORRECTION,
     Recipe,
     default_recipe_for,
@@ -115,6 +117,11 @@ class TrainConfig:
             raise ValueError(f"cache {self.cache!r}; expected one of: {', '.join(CACHE_MODES)}")
         if self.batch_size < 1 or self.epochs < 1:
             raise ValueError("batch_size and epochs must be >= 1")
+        low, high = CORRECTION_RANGE
+        if not (math.isfinite(self.correction) and low <= self.correction <= high):
+            raise ValueError(f"correction must be in [{low:g}, {high:g}], got {self.correction}")
+        if not (math.isfinite(self.block_s) and self.block_s > 0):
+            raise ValueError(f"block_s must be a positive number of seconds, got {self.block_s}")
         if not 0.0 < self.val_fraction < 1.0:
             raise ValueError(f"val_fraction must be in (0, 1), got {self.val_fraction}")
         if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity
@@ -367,16 +374,11 @@ def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: 
             if state_path.is_file() or (out / "config.json").is_file():
                 logger.warning("%s: no completed epoch to resume from; starting over", out)
             return {"epochs_done": 0, "best_val_loss": None, "best_epoch": None}
-        saved = config_to_dict(load_run_config(out))
-        wanted = config_to_dict(config)
-        changed = [
-            key for key in saved if key not in _RESUME_MAY_CHANGE and saved[key] != wanted[key]
-        ]
+        changed = changed_settings(config_to_dict(load_run_config(out)), config_to_dict(config),
+                                   may_change=_RESUME_MAY_CHANGE)
         if changed:
-            raise ValueError(
-                f"{out}: cannot resume with different settings: "
-                + ", ".join(f"{key} {saved[key]!r} -> {wanted[key]!r}" for key in changed)
-            )
+            raise ValueError(f"{out}: cannot resume with different settings: "
+                             + ", ".join(changed))
         saved_recipe = load_recipe(out / "recipe.toml")
         if saved_recipe.recordings != recipe.recordings:
             raise ValueError(

@@ -53,14 +53,9 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from clonedrive.config import config_from_dict
+from clonedrive.config import config_from_dict, parse_toml
 from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reject_unknown
 from clonedrive.drivers.driving_settings import DrivingSettings
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
 
 #: The recipes that ship with clonedrive (``<name>.toml`` in this package).
 BUILT_IN = ("best", "writeup")
@@ -198,24 +193,23 @@ def load_recipe_file(name_or_path: str | os.PathLike) -> RecipeFile:
 
 def is_whole_recipe(path: str | os.PathLike) -> bool:
     """True for a built-in recipe name or a TOML file with a ``[recipe]`` table (a data-only
-    recipe, data.recipe's format, has none)."""
+    recipe, data.recipe's format, has none). A file that is not TOML (or nests too deep, ...)
+    raises :func:`~clonedrive.config.parse_toml`'s ``ValueError`` now, before any work."""
     if str(path) in BUILT_IN:
         return True
     try:
         size = Path(path).stat().st_size
         if size > MAX_RECIPE_BYTES:
             return False
-        return "recipe" in tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):  # refused, with its reason, where it is loaded
         return False
+    return "recipe" in parse_toml(text, source=str(path))
 
 
 def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) -> RecipeFile:
     """Parse a whole recipe's TOML ``text`` (see the module doc)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{source}: not valid TOML: {error}") from None
+    data = parse_toml(text, source=source)
     reject_unknown(data, _TOP_KEYS, source, "the top level")
     identity = _table(data, "recipe", source)
     reject_unknown(identity, _IDENTITY_KEYS, source, "[recipe]")

@@ -103,7 +103,7 @@ def to_markdown(document: Document, base_dir: str | os.PathLike) -> str:
     if contents:
         lines += ["**Contents**", "", *contents, ""]
     for section in document.sections:
-        lines += [f"{'#' * section.level} {section.title}", ""]
+        lines += [f"{'#' * section.level} {_flat(section.title)}", ""]
         for block in section.blocks:
             lines += _markdown_block(block, base)
     return "\n".join(lines).rstrip() + "\n"
@@ -111,16 +111,16 @@ def to_markdown(document: Document, base_dir: str | os.PathLike) -> str:
 
 def _markdown_block(block: Block, base: Path) -> list[str]:
     if isinstance(block, Paragraph):
-        return [block.text, ""]
+        return [_flat(block.text), ""]
     if isinstance(block, Note):
-        return [f"> *{block.text}*", ""]
+        return [f"> *{_flat(block.text)}*", ""]
     if isinstance(block, Bullets):
-        return [*(f"- {item}" for item in block.items), ""]
+        return [*(f"- {_flat(item)}" for item in block.items), ""]
     if isinstance(block, Table):
         return _markdown_table(block)
     if isinstance(block, Figure):
         link = Path(os.path.relpath(block.path, base)).as_posix()
-        return [f"![{_one_line(block.caption)}]({link})", "", f"*{block.caption}*", ""]
+        return [f"![{_one_line(block.caption)}]({link})", "", f"*{_flat(block.caption)}*", ""]
     if isinstance(block, Gallery):
         lines: list[str] = []
         for figure in block.figures:
@@ -131,7 +131,7 @@ def _markdown_block(block: Block, base: Path) -> list[str]:
 
 def _markdown_table(table: Table) -> list[str]:
     def cells(values, bold=False):
-        text = [value.replace("|", "\\|") for value in values]
+        text = [_flat(value).replace("|", "\\|") for value in values]
         if bold:
             text = [f"**{value}**" if value else value for value in text]
         return "| " + " | ".join(text) + " |"
@@ -144,7 +144,19 @@ def _markdown_table(table: Table) -> list[str]:
 
 
 def _one_line(text: str) -> str:
-    return " ".join(text.replace("[", "(").replace("]", ")").split())
+    return _flat(text.replace("[", "(").replace("]", ")"))
+
+
+def _flat(text: str) -> str:
+    """``text`` on one line, its raw HTML tags shown as text: names in it (a recording's, a
+    track's) are the user's, and a newline there could start a heading, a list or a table
+    row, a ``<`` a tag (outside code spans, which show it as it is)."""
+    parts = _CODE_SPAN.split(" ".join(text.split()))
+    return "".join(part if index % 2 else part.replace("<", "&lt;")
+                   for index, part in enumerate(parts))
+
+
+_CODE_SPAN = re.compile(r"(`[^`]*`)")
 
 
 # --- HTML -------------------------------------------------------------------------------------

@@ -184,6 +184,9 @@ class ConditionFamily:
                 for end in value:  # both ends must be valid conditions
                     Conditions(**{field: end})
             elif isinstance(value, tuple):
+                if not value:
+                    raise ValueError(f"condition family {self.name!r}: line must be a colour or "
+                                     "a non-empty list of colours")
                 for colour in value:
                     Conditions(line=colour)
             else:
@@ -199,6 +202,8 @@ class ConditionFamily:
         description = data.pop("description", "")
         if not isinstance(held_out, bool):
             raise ValueError(f"{source}: conditions.{name}.held_out must be true or false")
+        if not isinstance(description, str):
+            raise ValueError(f"{source}: conditions.{name}.description must be a string")
         ranges = []
         for field, value in data.items():
             if isinstance(value, list):

@@ -69,6 +69,7 @@ from websockets.http11 import Request, Response
 
 from clonedrive.config import write_bytes_atomic
 from clonedrive.drivers.network import Policy
+from clonedrive.output_files import probe_writable
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server_config import IDLE_CLOSE_CODE, DriveServerConfig
 
@@ -573,9 +574,7 @@ def prepare_image_folder(folder: Path) -> int:
         raise ValueError(f"image folder {folder} is an existing file, not a folder")
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        probe = folder / f".write-test-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
+        probe_writable(folder, f".write-test-{os.getpid()}")
     except OSError as error:
         raise ValueError(f"image folder {folder}: cannot write there ({error.strerror})") from None
     total = 0

@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _configs(args: argparse.Namespace):
-    from clonedrive.manual.session import ManualConfig
+    from clonedrive.manual.config import ManualConfig
     from clonedrive.sim.conditions import TRAINING_LOOKS
     from clonedrive.web.app import WebSession
     from clonedrive.web.config import WebConfig

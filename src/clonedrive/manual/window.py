@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.config import atomic_path
-from clonedrive.manual.session import GAMEPAD_AXES, MENU, DrivingSession
+from clonedrive.manual.human_input import GAMEPAD_AXES
+from clonedrive.manual.session import MENU, DrivingSession
 
 #: Window size [px] (fixed): the camera view (2:1, like the 320x160 images) above a HUD panel.
 WINDOW_SIZE = (960, 640)
@@ -293,7 +294,7 @@ class DrivingWindow:
     def _refresh_menu(self) -> None:
         session = self.session
         self.menu_text.node().set_text("\n".join(session.menu_lines()))
-        from clonedrive.manual.session import HELP_MENU
+        from clonedrive.manual.hud import HELP_MENU
 
         self.menu_help.node().set_text(HELP_MENU)
         item = session.menu_items[session.menu_index].track

@@ -133,7 +133,8 @@ def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) ->
     recording keeps only the person's rows, counts the takeover, and ``dagger`` aggregates it."""
     from clonedrive.dagger import aggregate_recipe, check_human_recordings
     from clonedrive.data.recipe import Recipe, expand
-    from clonedrive.manual.session import DrivingSession, ManualConfig
+    from clonedrive.manual.config import ManualConfig
+    from clonedrive.manual.session import DrivingSession
     from clonedrive.web.pilots import ExpertPilot
 
     out = tmp_path / "takeovers"

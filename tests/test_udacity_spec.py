@@ -5,7 +5,7 @@ from clonedrive.cli import build_parser
 from clonedrive.data.recipe import DEFAULT_CORRECTION
 from clonedrive.data.recorder import RecordConfig
 from clonedrive.drivers.network import SpeedController
-from clonedrive.manual.session import ManualConfig
+from clonedrive.manual.config import ManualConfig
 from clonedrive.recipes.book import load_recipe_file
 from clonedrive.sim.simulator import SimConfig
 from clonedrive.udacity.client import ClientConfig

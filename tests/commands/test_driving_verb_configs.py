@@ -8,7 +8,7 @@ import pytest
 from clonedrive.cli import build_parser, main
 from clonedrive.data.recorder import RecordConfig
 from clonedrive.evaluate.config import EvalConfig
-from clonedrive.manual.session import DEFAULT_OUT_DIR, ManualConfig
+from clonedrive.manual.config import DEFAULT_OUT_DIR, ManualConfig
 from clonedrive.udacity.client import AutonomousConfig
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import cv2
@@ -73,6 +74,50 @@ def test_a_trace_that_differs_is_not_used(real_frames) -> None:
     second = np.asarray(forward(real_frames[:2]))
     assert forward.traced_shapes == []
     assert first[0, 0] < second[0, 0]  # each call ran the layer's Python again
+
+
+def dict_output_model():
+    """A model whose output is a dict, which torch.jit.trace refuses (RuntimeError)."""
+    import keras
+    from keras import layers
+
+    inputs = keras.Input((8, 8, 3))
+    flat = layers.Flatten()(inputs)
+    return keras.Model(inputs, {"steering": layers.Dense(1)(flat), "speed": layers.Dense(1)(flat)})
+
+
+def backward_hook_model():
+    """A model with a backward hook, which torch.jit.trace refuses (ValueError)."""
+    import keras
+    from keras import layers
+
+    inputs = keras.Input((8, 8, 3))
+    model = keras.Model(inputs, layers.Dense(1)(layers.Flatten()(inputs)))
+    model.register_full_backward_hook(lambda *args: None)
+    return model
+
+
+@pytest.mark.parametrize(("build", "error"), [(dict_output_model, "RuntimeError"),
+                                              (backward_hook_model, "ValueError")])
+def test_a_model_torch_cannot_trace_predicts_and_says_why(build, error, caplog) -> None:
+    model = build()
+    images = np.random.default_rng(0).random((2, 8, 8, 3), dtype=np.float32)
+    forward = forward_for(model)
+    with caplog.at_level(logging.INFO, logger="clonedrive.model"):
+        first, second = forward(images), forward(images[:1])
+    assert forward.traced_shapes == []
+    want = model.predict_on_batch(images)
+    if isinstance(want, dict):
+        assert sorted(first) == sorted(want)
+        for name in want:
+            np.testing.assert_array_equal(first[name], want[name])
+    else:
+        np.testing.assert_array_equal(first, want)
+    assert len(second if not isinstance(second, dict) else second["speed"]) == 1
+    infos = [record for record in caplog.records if record.levelno == logging.INFO]
+    assert len(infos) == 1  # once per model, not once per batch size
+    message = infos[0].getMessage()
+    assert "predict_on_batch" in message and "cannot trace" in message and error in message
 
 
 @pytest.mark.slow

@@ -9,17 +9,9 @@ import numpy as np
 import pytest
 
 from clonedrive.data.driving_log import image_time, read_driving_log
-from clonedrive.manual.session import (
-    AUTONOMOUS,
-    DRIVING,
-    GAMEPAD,
-    KEYBOARD,
-    MENU,
-    MOUSE,
-    DrivingSession,
-    ManualConfig,
-    move_toward,
-)
+from clonedrive.manual.config import ManualConfig
+from clonedrive.manual.human_input import GAMEPAD, KEYBOARD, MOUSE, move_toward
+from clonedrive.manual.session import AUTONOMOUS, DRIVING, MENU, DrivingSession
 from clonedrive.sim.simulator import SimConfig
 
 STATE_ONLY = SimConfig(cameras=(), scenery=False)

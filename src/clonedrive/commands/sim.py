@@ -33,7 +33,7 @@ EXAMPLES = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from clonedrive.manual.session import DEFAULT_OUT_DIR, ManualConfig
+    from clonedrive.manual.config import DEFAULT_OUT_DIR, ManualConfig
 
     d = ManualConfig()
     parser.add_argument("--track", default=None,
@@ -143,7 +143,7 @@ def _host_port(text: str) -> tuple[str, int]:
 
 
 def _manual_config(args: argparse.Namespace, host: str, port: int):
-    from clonedrive.manual.session import ManualConfig
+    from clonedrive.manual.config import ManualConfig
 
     return ManualConfig(scenery=not args.no_scenery, seed=args.seed,
                         generated_seed=args.generated_seed, header=args.header,

@@ -113,7 +113,7 @@ def _serve(config, setup, policy, model: str | None, manual) -> int:
 
 
 def _configs(args: argparse.Namespace):
-    from clonedrive.manual.session import ManualConfig
+    from clonedrive.manual.config import ManualConfig
     from clonedrive.sim.conditions import TRAINING_LOOKS
     from clonedrive.web.app import WebSession
     from clonedrive.web.config import WebConfig

@@ -7,13 +7,15 @@ arithmetic, which a trace leaves out.
 :class:`TracedForward` traces the model (``torch.jit.trace`` of the Keras model, itself a
 ``torch.nn.Module``) once per batch size, since a trace records its shapes. It trusts a trace only
 once its outputs have equalled ``predict_on_batch``'s on that first batch bit for bit. A model
-that cannot be traced, or whose trace differs, keeps running through ``predict_on_batch``. So a
-policy steers the same to the last bit either way; only the time changes.
+that cannot be traced, or whose trace differs, keeps running through ``predict_on_batch``, and
+the first time that happens to a model one INFO line on the ``clonedrive.model`` logger says
+why. So a policy steers the same to the last bit either way; only the time changes.
 """
 
 from __future__ import annotations
 
 import io
+import logging
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +29,8 @@ from clonedrive.drivers.crop import visible_rows
 #: trace per size it passes through); beyond it, predict_on_batch.
 MAX_TRACES = 16
 
+logger = logging.getLogger("clonedrive.model")
+
 
 class TracedForward:
     """``predict_on_batch`` for a Keras model on the PyTorch backend, run by a trace when a
@@ -35,6 +39,7 @@ class TracedForward:
     def __init__(self, model: Any) -> None:
         self.model = model
         self._traces: dict[tuple, Any] = {}  # input shape -> checked trace, or None: not used
+        self._untraced_reported = False  # the reason a shape runs untraced was logged
 
     def __call__(self, images: np.ndarray) -> np.ndarray | list[np.ndarray]:
         import torch
@@ -66,9 +71,25 @@ class TracedForward:
                 trace = torch.jit.trace(self.model, (batch,), check_trace=False)
             with torch.inference_mode():
                 got = _numpy(trace(batch))
-        except Exception:  # noqa: BLE001 -- any model torch cannot trace keeps predict_on_batch
+        # What torch raises for a model it cannot trace: RuntimeError from the tracer (a dict
+        # or other non-tensor output...), ValueError for the module's structure (backward
+        # hooks, parameters shared between modules), torch.jit.Error from running the trace.
+        except (RuntimeError, ValueError, torch.jit.Error) as error:
+            self._report_untraced(images.shape, f"torch cannot trace it ({type(error).__name__}: "
+                                  f"{_first_line(error)})")
             return None
-        return trace if _same(got, expected) else None
+        if not _same(got, expected):
+            self._report_untraced(images.shape, "its trace's outputs differ from "
+                                  "predict_on_batch's")
+            return None
+        return trace
+
+    def _report_untraced(self, shape: tuple, reason: str) -> None:
+        """Log, once per model, why a batch shape keeps ``predict_on_batch``."""
+        level = logging.DEBUG if self._untraced_reported else logging.INFO
+        self._untraced_reported = True
+        logger.log(level, "model %s runs through predict_on_batch for batches of shape %s: %s",
+                   getattr(self.model, "name", "?"), tuple(shape), reason)
 
     def portable(self, batch_sizes: Sequence[int], *, seed: int = 0) -> PortableModel | None:
         """The model as its checked traces, one per batch size, for a worker process to run
@@ -177,6 +198,12 @@ def _numpy(output) -> np.ndarray | list[np.ndarray]:
     if isinstance(output, list | tuple):
         return [item.detach().cpu().numpy() for item in output]
     return output.detach().cpu().numpy()
+
+
+def _first_line(error: BaseException) -> str:
+    """An exception's message up to its first line break (torch's run to many lines)."""
+    text = str(error).strip()
+    return text.splitlines()[0][:200] if text else "no message"
 
 
 def _same(a, b) -> bool:

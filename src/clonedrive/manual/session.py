@@ -10,53 +10,38 @@ are counted, not intervened; Backspace is the runner's intervention, at rest). T
 (:mod:`clonedrive.manual.window`) only forwards events and draws what the session exposes, so all of
 this runs, and is tested, without a display.
 
-Modes: ``menu`` (choose a track and direction) -> ``driving`` (a human steers) <->
-``autonomous`` (a drive server steers, through
-:class:`~clonedrive.udacity.client.SimulatorClient`, exactly as the Udacity simulator's autonomous
-mode; a human takes over for as long as a steering or throttle key is held, a gamepad control is
-moved, or the pointer steers (mouse steering: pressed on the page, inside the window), and the
-server is sent the manual-mode telemetry meanwhile). Recording is independent of the mode.
-Autonomous mode can also be given any :class:`Pilot` (``start_autonomous(pilot)``: the expert or a
-model in this process, as ``clonedrive web`` does), with or without takeover; each takeover is
-counted (:attr:`DrivingSession.takeovers`), and with ``takeover_labels`` a recording keeps only
-the rows a person drove, the labels of HG-DAgger (Kelly et al. 2019).
+This module is the session's state machine. Modes: ``menu`` (choose a track and direction) ->
+``driving`` (a human steers) <-> ``autonomous`` (a pilot steers, by default a drive server,
+exactly as the Udacity simulator's autonomous mode, :mod:`clonedrive.manual.pilot`; a human takes
+over for as long as a steering or throttle key is held, a gamepad control is moved, or the
+pointer steers (mouse steering: pressed on the page, inside the window), and the server is sent
+the manual-mode telemetry meanwhile). Recording is independent of the mode
+(:mod:`clonedrive.manual.recording`). Autonomous mode can also be given any
+:class:`~clonedrive.manual.pilot.Pilot` (``start_autonomous(pilot)``: the expert or a model in
+this process, as ``clonedrive web`` does), with or without takeover; each takeover is counted
+(:attr:`DrivingSession.takeovers`), and with ``takeover_labels`` a recording keeps only the rows a
+person drove, the labels of HG-DAgger (Kelly et al. 2019).
 
-Steering that gives good labels (UDACITY.md: keyboard steering in the Udacity simulator gives
-mostly 0 and then +-1 spikes):
-
-- **keyboard** (arrows or A/D): a held key turns the wheel at ``keyboard_steer_rate_per_s``
-  toward full lock; released, the wheel returns to the centre at ``keyboard_return_rate_per_s``.
-  One 1/15 s step moves steering by at most ~0.1: ramps, not spikes.
-- **mouse** (``M`` toggles): steering follows the pointer's horizontal position, -1 at the
-  window's left edge, +1 at its right edge (times ``mouse_gain``, clipped).
-- **gamepad**: the left stick's x axis steers, the right trigger drives and the left trigger
-  brakes; moving the stick or a trigger beyond ``gamepad_dead_zone`` selects it.
-
-Throttle (W / up arrow) and brake-then-reverse (S / down arrow) ramp at ``throttle_rate_per_s``;
-Space brakes fully. Other keys: ``R`` starts/stops recording, ``P`` starts/stops autonomous mode,
-``M`` mouse steering, ``Backspace`` puts the car back on the centreline, ``Esc`` goes back to the
-menu (and quits from the menu). ``A`` steers left, so autonomous mode is ``P`` (pilot).
-
-Recording writes the Udacity format (UDACITY.md) through
-:class:`~clonedrive.data.recorder.RowSink`, as ``clonedrive record`` does: one row per control
-step, each image written (atomically) before its row, appended to an existing log with image
-times continuing after its last one, and a session entry in ``config.json``. A row holds the
-images taken at a step, the steering and throttle applied for that step (throttle clipped to
->= 0; a negative throttle above 5 mph is recorded as brake, as it brakes), and the speed when
-the images were taken.
+How keys, the pointer and a gamepad steer is :mod:`clonedrive.manual.human_input`; the HUD and
+menu text, :mod:`clonedrive.manual.hud`. Keys the session itself handles: ``R`` starts/stops
+recording, ``P`` starts/stops autonomous mode, ``M`` mouse steering, ``Backspace`` puts the car
+back on the centreline, ``Esc`` goes back to the menu (and quits from the menu). ``A`` steers
+left, so autonomous mode is ``P`` (pilot).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, replace
-from datetime import timedelta
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 from clonedrive.episode.rules import EpisodeRules
-from clonedrive.udacity_spec import JPEG_QUALITY, PORT
+from clonedrive.manual.config import DEFAULT_OUT_DIR, ManualConfig
+from clonedrive.manual.hud import Hud, MenuItem, driving_hud, menu_lines
+from clonedrive.manual.human_input import KEYBOARD, MOUSE, STEER_KEYS, HumanInput
+from clonedrive.manual.pilot import Pilot
+from clonedrive.manual.recording import ManualRecording, SessionRecorder
 from clonedrive.world.vehicle import Controls
 
 if TYPE_CHECKING:  # the simulator loads when a track opens, not when the CLI reads defaults
@@ -64,135 +49,12 @@ if TYPE_CHECKING:  # the simulator loads when a track opens, not when the CLI re
 
 #: Modes of a session.
 MENU, DRIVING, AUTONOMOUS = "menu", "driving", "autonomous"
-#: Steering sources.
-KEYBOARD, MOUSE, GAMEPAD = "keyboard", "mouse", "gamepad"
-
-STEER_LEFT_KEYS = frozenset({"arrow_left", "a"})
-STEER_RIGHT_KEYS = frozenset({"arrow_right", "d"})
-THROTTLE_KEYS = frozenset({"arrow_up", "w"})
-REVERSE_KEYS = frozenset({"arrow_down", "s"})
-BRAKE_KEYS = frozenset({"space"})
-DRIVING_KEYS = STEER_LEFT_KEYS | STEER_RIGHT_KEYS | THROTTLE_KEYS | REVERSE_KEYS | BRAKE_KEYS
-#: Gamepad axes the session reads (Panda3D ``InputDevice.Axis`` names).
-GAMEPAD_AXES = ("left_x", "right_trigger", "left_trigger")
-#: Below this speed a negative throttle reverses instead of braking (the Udacity car).
-REVERSE_BELOW_MPH = 5.0
-#: Where ``R`` records unless told otherwise.
-DEFAULT_OUT_DIR = "data/manual"
 #: A status message stays on the HUD this long [s of simulated time].
 MESSAGE_SECONDS = 4.0
-
-HELP_DRIVING = ("W/S: throttle/brake  A/D: steer (or arrows)  M: mouse steering  Space: brake  "
-                "R: record  P: autonomous  Backspace: reset  Esc: menu")
 #: A person drives where they like: an off-road event is counted, not intervened; no lap
 #: target, no time limit. A person holds no set speed, so Backspace (the runner's intervention)
 #: puts the car back on the centreline at rest.
 MANUAL_RULES = EpisodeRules(laps=None, set_speed_mph=0.0, off_road="continue")
-
-HELP_MENU = ("Up/Down: track  Left/Right: direction  G: another generated track  "
-             "Enter: drive  Esc: quit")
-
-
-@dataclass(frozen=True)
-class ManualConfig:
-    """How manual driving feels and where autonomous mode connects."""
-
-    keyboard_steer_rate_per_s: float = 1.2  #: steering change per s while a steer key is held
-    keyboard_return_rate_per_s: float = 2.5  #: ... back toward 0 when released or reversing
-    keyboard_max_steering: float = 1.0  #: the most a held key steers (|steering|)
-    throttle_rate_per_s: float = 2.5  #: throttle change per s toward the key's target
-    mouse_gain: float = 1.0  #: steering = gain x pointer x (pointer x in [-1, 1])
-    gamepad_dead_zone: float = 0.08  #: stick/trigger values below this count as 0
-    scenery: bool = True  #: trees, rocks... (off: road and terrain only, quicker to load)
-    seed: int = 0  #: the scene's seed
-    generated_seed: int = 1  #: the menu's generated track is gen:<this>, G picks the next
-    header: bool = False  #: recording: write the header line (the simulator writes none)
-    relative_paths: bool = False  #: recording: IMG/<name> instead of absolute paths
-    jpeg_quality: int = JPEG_QUALITY  #: recording: JPEG quality 1-100
-    server_host: str = "127.0.0.1"  #: autonomous mode: the drive server
-    server_port: int = PORT
-    connect_timeout_s: float = 2.0  #: give up connecting after this long (the window waits)
-    reply_timeout_s: float = 10.0  #: a drive server silent this long ends autonomous mode
-
-    def __post_init__(self) -> None:
-        for name in ("keyboard_steer_rate_per_s", "keyboard_return_rate_per_s",
-                     "throttle_rate_per_s", "mouse_gain", "connect_timeout_s",
-                     "reply_timeout_s"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {getattr(self, name)}")
-        if not 0 < self.keyboard_max_steering <= 1:
-            raise ValueError(
-                f"keyboard_max_steering must be in (0, 1], got {self.keyboard_max_steering}")
-        if not 0 <= self.gamepad_dead_zone < 1:
-            raise ValueError(f"gamepad_dead_zone must be in [0, 1), got {self.gamepad_dead_zone}")
-        if not 1 <= self.jpeg_quality <= 100:
-            raise ValueError(f"jpeg_quality must be in [1, 100], got {self.jpeg_quality}")
-        if not 0 <= self.server_port <= 65535:
-            raise ValueError(f"server_port must be in 0..65535, got {self.server_port}")
-
-
-@dataclass(frozen=True)
-class ManualRecording:
-    """What a manual recording session writes to ``config.json`` (next to the recorder's)."""
-
-    track: str
-    reverse: bool
-    style: str = "manual"
-    steering_input: str = KEYBOARD  #: the steering source when recording started
-    scenery: bool = True
-    seed: int = 0
-    header: bool = False
-    relative_paths: bool = False
-    jpeg_quality: int = JPEG_QUALITY
-
-
-class Pilot(Protocol):
-    """Who drives in autonomous mode: a drive server (the default) or anything that decides from
-    the observation."""
-
-    name: str  #: shown on the HUD
-
-    def controls(self, obs: SimObservation) -> Controls | None:
-        """This step's controls; None: the car rolls on as it is."""
-        ...
-
-    def manual(self) -> None:
-        """A person has the car this step."""
-        ...
-
-    def close(self) -> None: ...
-
-
-@dataclass(frozen=True)
-class MenuItem:
-    label: str
-    track: str  #: a name for load_track
-
-
-@dataclass(frozen=True)
-class Hud:
-    """The text the window shows while driving."""
-
-    status: str  #: track, speed, steering, throttle, CTE, laps
-    mode: str  #: who drives and with what
-    recording: str  #: recording state and row counts
-    message: str  #: the latest status message ('' when none)
-    help: str
-
-
-def move_toward(value: float, target: float, max_change: float) -> float:
-    """``value`` moved toward ``target`` by at most ``max_change`` (>= 0)."""
-    if value < target:
-        return min(value + max_change, target)
-    return max(value - max_change, target)
-
-
-def _dead_zone(value: float, zone: float) -> float:
-    """0 inside ``zone``, rescaled so that the output still reaches +-1 outside it."""
-    magnitude = abs(value)
-    if magnitude <= zone:
-        return 0.0
-    return math.copysign(min((magnitude - zone) / (1.0 - zone), 1.0), value)
 
 
 class DrivingSession:
@@ -217,7 +79,6 @@ class DrivingSession:
         self.menu_index = 0
         self.reverse = False
         self.generated_seed = self.config.generated_seed
-        self.steering_source = KEYBOARD
         self.sim = None
         self._episode = None
         self._runner = None
@@ -225,20 +86,10 @@ class DrivingSession:
         self.observation: SimObservation | None = None
         self.controls = Controls()  #: the controls applied in the latest step
         self.message = ""
-        self.rows_recorded = 0  #: rows of the current (or latest) recording
-        self.folder_rows = 0  #: rows in the output folder's log, including this recording's
         self._message_until_s = math.inf
-        self._held: set[str] = set()
-        self._key_steering = 0.0
-        self._key_throttle = 0.0
-        self._pointer_x: float | None = None
-        self._axes = dict.fromkeys(GAMEPAD_AXES, 0.0)
+        self._input = HumanInput(self.config)
         self._pending: tuple[str, bool] | None = None
-        self._sink = None
-        self._lock = None  # the recording folder's lock while recording
-        self._session: dict | None = None
-        self._takeovers_before = 0
-        self._recording_config: ManualRecording | None = None
+        self._recorder = SessionRecorder(self.out_dir, self.config)
         self._client: Pilot | None = None
         self.takeover = True  #: in autonomous mode, a held control takes over
         self.takeover_labels = False  #: ... and a recording then keeps only the person's rows
@@ -259,7 +110,27 @@ class DrivingSession:
 
     @property
     def recording(self) -> bool:
-        return self._sink is not None
+        return self._recorder.recording
+
+    @property
+    def rows_recorded(self) -> int:
+        """Rows of the current (or latest) recording."""
+        return self._recorder.rows_recorded
+
+    @property
+    def folder_rows(self) -> int:
+        """Rows in the output folder's log, including this recording's."""
+        return self._recorder.folder_rows
+
+    @property
+    def steering_source(self) -> str:
+        """``keyboard``, ``mouse`` or ``gamepad``."""
+        return self._input.source
+
+    @property
+    def pilot(self) -> Pilot | None:
+        """Who drives in autonomous mode (None outside it)."""
+        return self._client
 
     @property
     def taking_over(self) -> bool:
@@ -281,15 +152,13 @@ class DrivingSession:
     def key_down(self, key: str) -> None:
         """A key (Panda3D button name) was pressed."""
         key = key.lower()
-        if key in self._held:
+        if not self._input.press(key):
             return  # auto-repeat
-        self._held.add(key)
         if self.mode == MENU:
             self._menu_key(key)
             return
-        if key in STEER_LEFT_KEYS | STEER_RIGHT_KEYS and self.steering_source != KEYBOARD:
-            self._key_steering = self.controls.steering  # take over where the wheel is
-            self.steering_source = KEYBOARD
+        if key in STEER_KEYS and self.steering_source != KEYBOARD:
+            self._input.use_keyboard(self.controls.steering)  # take over where the wheel is
         if key == "escape":
             self._leave_track()
             self._say("back in the menu")
@@ -307,41 +176,34 @@ class DrivingSession:
             self.toggle_mouse_steering()
         elif key == "backspace" and self._episode is not None:
             self.observation = self._episode.intervene()
-            self._key_steering = self._key_throttle = 0.0
+            self._input.hold(0.0, 0.0)
             self._say("back on the centreline")
 
     def key_up(self, key: str) -> None:
         """A key was released."""
-        self._held.discard(key.lower())
+        self._input.release(key.lower())
 
     def pointer(self, x: float | None) -> None:
         """The mouse pointer's horizontal position: -1 at the window's left edge, +1 at its right
         edge; None when the pointer is outside the window (steering then stays)."""
-        self._pointer_x = None if x is None else min(max(float(x), -1.0), 1.0)
+        self._input.point(x)
 
     def gamepad_axis(self, axis: str, value: float) -> None:
         """A gamepad axis value: ``left_x`` in [-1, 1], ``right_trigger``/``left_trigger`` in
         [0, 1]. Moving one beyond the dead zone makes the gamepad the steering source."""
-        if axis not in self._axes:
-            return
-        self._axes[axis] = float(value)
-        if abs(value) > self.config.gamepad_dead_zone and self.steering_source != GAMEPAD:
-            self.steering_source = GAMEPAD
+        if self._input.move_axis(axis, value):
             self._say("gamepad steering")
 
     def release_all(self) -> None:
         """Every key, the pointer and the gamepad let go (the input window lost focus)."""
-        self._held.clear()
-        self._pointer_x = None
-        self._axes = dict.fromkeys(GAMEPAD_AXES, 0.0)
+        self._input.release_all()
 
     def toggle_mouse_steering(self) -> None:
         if self.steering_source == MOUSE:
-            self._key_steering = self.controls.steering
-            self.steering_source = KEYBOARD
+            self._input.use_keyboard(self.controls.steering)
             self._say("keyboard steering")
         else:
-            self.steering_source = MOUSE
+            self._input.source = MOUSE
             self._say("mouse steering: the pointer's horizontal position steers")
 
     def _menu_key(self, key: str) -> None:
@@ -398,7 +260,7 @@ class DrivingSession:
         self.reverse = reverse
         self.mode = DRIVING
         self.controls = Controls()
-        self._key_steering = self._key_throttle = 0.0
+        self._input.hold(0.0, 0.0)
         self._say(f"driving {track.name}{' in reverse' if reverse else ''}: "
                   "R records, P hands over to a drive server")
 
@@ -437,18 +299,14 @@ class DrivingSession:
         return True
 
     def _connect_server(self) -> Pilot | None:
-        from clonedrive.udacity.client import ClientConfig, DriveServerError, SimulatorClient
+        from clonedrive.manual.pilot import connect_server
+        from clonedrive.udacity.client import DriveServerError
 
-        client = SimulatorClient(ClientConfig(
-            host=self.config.server_host, port=self.config.server_port,
-            connect_timeout_s=self.config.connect_timeout_s,
-            reply_timeout_s=self.config.reply_timeout_s))
         try:
-            client.connect()
+            return connect_server(self.config)
         except DriveServerError as error:
             self._say(f"autonomous mode off: {error}")
             return None
-        return _ServerPilot(client)
 
     def stop_autonomous(self, reason: str = "manual driving") -> None:
         if self._client is not None:
@@ -457,99 +315,35 @@ class DrivingSession:
         self._taking_over = False
         if self.mode == AUTONOMOUS:
             self.mode = DRIVING
-            self._key_steering = self.controls.steering
-            self._key_throttle = max(self.controls.throttle, 0.0)
+            self._input.hold(self.controls.steering, max(self.controls.throttle, 0.0))
             self._say(reason)
 
     # ------------------------------------------------------------------ recording
     def start_recording(self) -> bool:
         """Start recording into ``out_dir`` (appending to a log already there)."""
-        from clonedrive.data.driving_log import CAMERAS
-        from clonedrive.data.recording_lock import RecordingLock, RecordingLockedError
-
         if self.sim is None or self.recording:
             return False
-        missing = [camera for camera in CAMERAS if camera not in self.sim_config.cameras]
-        if missing:
-            self._say(f"cannot record: no {', '.join(missing)} camera")
-            return False
-        lock = RecordingLock(self.out_dir)
-        try:
-            lock.acquire()
-        except (RecordingLockedError, ValueError, OSError) as error:
-            self._say(f"cannot record: {error}")
-            return False
-        try:
-            self._open_sink()
-        except BaseException:
-            lock.release()
-            raise
-        self._lock = lock
-        self._say(f"recording into {self.out_dir}")
-        return True
-
-    def _open_sink(self) -> None:
-        """Start this recording's session in ``out_dir`` (its lock held) and open the sink."""
-        from clonedrive import __version__
-        from clonedrive.config import config_to_dict
-        from clonedrive.data.recorder import RowSink, prepare_log_folder, write_session_config
-
-        existing_rows, start = prepare_log_folder(self.out_dir)
-        # Image names are start + simulated time: the first row's image is named ``start``.
-        elapsed = timedelta(seconds=self.observation.time_s)
         recording = ManualRecording(
             track=self.track_name, reverse=self.reverse, steering_input=self.steering_source,
             scenery=self.sim_config.scenery, seed=self.config.seed, header=self.config.header,
             relative_paths=self.config.relative_paths, jpeg_quality=self.config.jpeg_quality)
-        session = {"started": start.isoformat(timespec="milliseconds"), "rows": None,
-                   **config_to_dict(recording)}
-        write_session_config(self.out_dir, recording, self.sim.track, __version__, session)
-        self._sink = RowSink(self.out_dir, start - elapsed, header=self.config.header,
-                             relative_paths=self.config.relative_paths,
-                             jpeg_quality=self.config.jpeg_quality)
-        self._session = session
-        self._takeovers_before = self.takeovers
-        self._recording_config = recording
-        self.rows_recorded = 0
-        self.folder_rows = existing_rows
+        refused = self._recorder.start(recording, self.sim.track,
+                                       cameras=self.sim_config.cameras,
+                                       time_s=self.observation.time_s, takeovers=self.takeovers)
+        if refused is not None:
+            self._say(refused)
+            return False
+        self._say(f"recording into {self.out_dir}")
+        return True
 
     def stop_recording(self) -> int:
         """Stop recording: every submitted row is written before this returns. Returns the rows
         this recording wrote."""
-        from clonedrive import __version__
-        from clonedrive.data.recorder import write_session_config
-
-        if self._sink is None:
+        if not self.recording:
             return 0
-        sink, self._sink = self._sink, None
-        try:
-            sink.close()
-        finally:
-            self._session["rows"] = sink.rows_written
-            self._session["takeovers"] = self.takeovers - self._takeovers_before
-            try:
-                write_session_config(self.out_dir, self._recording_config, self.sim.track,
-                                     __version__, self._session)
-            finally:
-                lock, self._lock = self._lock, None
-                if lock is not None:
-                    lock.release()
-        self.rows_recorded = sink.rows_written
-        self._say(f"recorded {sink.rows_written} rows into {self.out_dir}")
-        return sink.rows_written
-
-    def _record(self, obs: SimObservation, controls: Controls) -> None:
-        try:
-            self._sink.submit(obs, controls.steering, _recorded(controls, obs.speed_mph))
-        except RuntimeError as error:  # a failed write: stop recording, keep driving
-            try:
-                self.stop_recording()
-            except RuntimeError:
-                pass  # the same error, raised again by the sink's close
-            self._say(f"recording stopped: {error}", forever=True)
-            return
-        self.rows_recorded += 1
-        self.folder_rows += 1
+        rows = self._recorder.stop(self.takeovers)
+        self._say(f"recorded {rows} rows into {self.out_dir}")
+        return rows
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> SimObservation | None:
@@ -563,8 +357,10 @@ class DrivingSession:
             return None
         (step,) = self._runner.step()
         controls = step.decision.controls
-        if self._sink is not None and (self._taking_over or not self._labels_only()):
-            self._record(step.seen, controls)
+        if self.recording and (self._taking_over or not self._labels_only()):
+            failed = self._recorder.record(step.seen, controls, self.takeovers)
+            if failed is not None:  # a failed write: recording stopped, driving goes on
+                self._say(f"recording stopped: {failed}", forever=True)
         self.controls = controls
         self.observation = self._episode.observation
         if self.observation.time_s >= self._message_until_s:
@@ -575,7 +371,7 @@ class DrivingSession:
         """This step's controls: the person's input, or in autonomous mode the drive server's
         command unless a person takes over."""
         dt_s = 1.0 / self.sim.config.control_hz
-        human = self._human_controls(dt_s)
+        human = self._input.controls(dt_s, self.controls.steering)
         if self.mode == AUTONOMOUS:
             return self._server_controls(human)
         return human
@@ -583,48 +379,12 @@ class DrivingSession:
     def _labels_only(self) -> bool:
         return self.mode == AUTONOMOUS and self.takeover_labels
 
-    def _human_active(self) -> bool:
-        zone = self.config.gamepad_dead_zone
-        pointing = self.steering_source == MOUSE and self._pointer_x is not None
-        return pointing or bool(self._held & DRIVING_KEYS) or any(
-            abs(value) > zone for value in self._axes.values())
-
-    def _human_controls(self, dt_s: float) -> Controls:
-        config = self.config
-        held = self._held
-        # Keyboard steering: ramp toward the held side, return to the centre when released.
-        target = (float(bool(held & STEER_RIGHT_KEYS)) - float(bool(held & STEER_LEFT_KEYS))
-                  ) * config.keyboard_max_steering
-        steering = self._key_steering
-        toward_centre = target == 0.0 or target * steering < 0.0
-        rate = config.keyboard_return_rate_per_s if toward_centre else \
-            config.keyboard_steer_rate_per_s
-        self._key_steering = move_toward(steering, target, rate * dt_s)
-        if self.steering_source == MOUSE and self._pointer_x is not None:
-            steering = min(max(config.mouse_gain * self._pointer_x, -1.0), 1.0)
-        elif self.steering_source == MOUSE:
-            steering = self.controls.steering  # pointer outside the window: hold the wheel
-        elif self.steering_source == GAMEPAD:
-            steering = _dead_zone(self._axes["left_x"], config.gamepad_dead_zone)
-        else:
-            steering = self._key_steering
-        # Throttle: keys ramp it; the gamepad's triggers set it directly.
-        key_target = float(bool(held & THROTTLE_KEYS)) - float(bool(held & REVERSE_KEYS))
-        self._key_throttle = move_toward(self._key_throttle, key_target,
-                                         config.throttle_rate_per_s * dt_s)
-        throttle = self._key_throttle
-        if self.steering_source == GAMEPAD and not held & (THROTTLE_KEYS | REVERSE_KEYS):
-            throttle = (_dead_zone(self._axes["right_trigger"], config.gamepad_dead_zone)
-                        - _dead_zone(self._axes["left_trigger"], config.gamepad_dead_zone))
-        brake = 1.0 if held & BRAKE_KEYS else 0.0
-        return Controls(steering=steering, throttle=throttle, brake=brake).clipped()
-
     def _server_controls(self, human: Controls) -> Controls:
         """The drive server's command for this step, or the human's while one takes over
         (the server then gets the manual-mode telemetry, as from the Udacity simulator)."""
         from clonedrive.udacity.client import DriveServerError
 
-        taking_over = self.takeover and self._human_active()
+        taking_over = self.takeover and self._input.active()
         if taking_over and not self._taking_over:
             self.takeovers += 1
         self._taking_over = taking_over
@@ -638,7 +398,7 @@ class DrivingSession:
             return human
         if reply is None:  # "manual": the server lets the car roll on as it is
             return self.controls
-        self._key_steering = reply.steering  # a human taking over starts from here
+        self._input.key_steering = reply.steering  # a human taking over starts from here
         return reply.clipped()
 
     # ------------------------------------------------------------------ display text
@@ -650,29 +410,7 @@ class DrivingSession:
 
     def hud(self) -> Hud:
         """The driving HUD's text (meaningful while a track is open)."""
-        obs = self.observation
-        if obs is None:
-            return Hud(status="", mode="", recording="", message=self.message, help=HELP_MENU)
-        controls = self.controls
-        direction = " (reverse)" if self.reverse else ""
-        status = (f"{self.track_name}{direction}   {obs.speed_mph:5.1f} mph   "
-                  f"steering {controls.steering:+.2f}   throttle {controls.throttle:+.2f}"
-                  f"{'  brake' if controls.brake > 0 else ''}   CTE {obs.cte_m:+.2f} m   "
-                  f"laps {obs.laps}   off-road {obs.off_road_events}"
-                  f"{'   OFF ROAD' if obs.off_road else ''}")
-        if self.mode == AUTONOMOUS:
-            who = "manual override" if self._taking_over else "the pilot drives"
-            takeovers = f"   takeovers {self.takeovers}" if self.takeover else ""
-            mode = f"AUTONOMOUS ({self._client.name}): {who}{takeovers}"
-        else:
-            mode = f"MANUAL: {self.steering_source} steering"
-        if self.recording:
-            recording = (f"REC  {self.rows_recorded} rows  ({self.folder_rows} in "
-                         f"{self.out_dir.name}/)")
-        else:
-            recording = f"not recording: R records into {self.out_dir}"
-        return Hud(status=status, mode=mode, recording=recording, message=self.message,
-                   help=HELP_DRIVING)
+        return driving_hud(self)
 
     def hud_lines(self) -> list[str]:
         hud = self.hud()
@@ -681,33 +419,7 @@ class DrivingSession:
 
     def menu_lines(self) -> list[str]:
         """The menu: a title, one line per track (the chosen one marked), the direction."""
-        lines = ["clonedrive: choose a track", ""]
-        for index, item in enumerate(self.menu_items):
-            marker = ">" if index == self.menu_index else " "
-            lines.append(f"{marker} {index + 1}  {item.label}")
-        lines += ["", f"direction: {'reverse' if self.reverse else 'forward'}",
-                  f"recordings go to {self.out_dir}"]
-        if self.message:
-            lines += ["", self.message]
-        return lines
-
-
-class _ServerPilot:
-    """A drive server as the pilot, through the Udacity simulator's side of the protocol."""
-
-    def __init__(self, client) -> None:
-        self.client = client
-        self.name = client.url
-
-    def controls(self, obs: SimObservation) -> Controls | None:
-        return self.client.controls_for(obs.images["center"], obs.steering, obs.throttle,
-                                        obs.speed_mph)
-
-    def manual(self) -> None:
-        self.client.manual()
-
-    def close(self) -> None:
-        self.client.close()
+        return menu_lines(self)
 
 
 class _SessionDriver:
@@ -725,11 +437,3 @@ class _SessionDriver:
 
     def intervened(self, obs: SimObservation) -> None:
         """Nothing to forget."""
-
-
-def _recorded(controls: Controls, speed_mph: float) -> Controls:
-    """The controls as a log row reports them: a negative throttle brakes above 5 mph."""
-    brake = controls.brake
-    if controls.throttle < 0 and speed_mph > REVERSE_BELOW_MPH:
-        brake = max(brake, -controls.throttle)
-    return replace(controls, throttle=max(controls.throttle, 0.0), brake=brake)

@@ -8,18 +8,8 @@ framing is done here by hand over a plain WebSocket (see :mod:`clonedrive.udacit
 events are accepted whether or not the client ever sent a Socket.IO CONNECT (the simulator never
 does -- the reason python-socketio 5 servers leave the car standing).
 
-What gets which answer:
-
-* ``42["telemetry",{...}]`` -> ``steer`` with the policy's controls;
-* ``42["telemetry",null]`` (manual mode) -> ``42["manual",{}]``;
-* a frame that starts with ``42`` but cannot be used -- not JSON, missing or non-numeric fields,
-  invalid base64, not a JPEG, corrupt JPEG, wrong image size, larger than
-  ``max_message_bytes`` -- is logged, counted and answered with the safe command
-  ``42["steer",{"steering_angle":"0","throttle":"0"}]`` so the simulator's loop keeps going;
-* ping ``2<data>`` -> pong ``3<data>`` (``2probe`` -> ``3probe``); CONNECT ``40`` -> ``40``;
-  close ``1`` or DISCONNECT ``41`` -> the connection is closed;
-* anything else (binary frames, text that is not Engine.IO, events other than ``telemetry``) is
-  logged, counted and ignored: answering it would break the lock-step of a real client.
+What each received message gets -- ``steer``, ``manual``, the safe command, a pong, or nothing
+-- is :mod:`clonedrive.udacity.triage`.
 
 Memory is bounded: a message over ``max_message_bytes`` (1 MiB; a real frame is ~15 KB) is
 refused unread beyond its size, one over the WebSocket limit (2 MiB) makes ``websockets`` close
@@ -32,20 +22,13 @@ its own policy state (speed controller, steering filter and hold, counters; see
 alone, and never deletes an existing image folder (frames are added to it).
 
 It cannot be hijacked from a web page or starved by idle clients (:class:`DriveServerConfig`):
-
-* an upgrade that carries an ``Origin`` header (every browser sends one; the simulator sends
-  none) is refused with 403 unless it is the server's own origin (``http://127.0.0.1:PORT``,
-  what websocket-client and python-socketio's client send; no page can come from there) or is
-  listed in ``allowed_origins``;
-* the ``Host`` header must name the bound address (loopback names for 127.0.0.1; any IP
-  address when bound to all interfaces) or a name in ``allowed_hosts``, so a DNS-rebinding
-  page cannot reach the server under its own domain name (403 otherwise);
-* a connection that sends no telemetry for ``idle_timeout_s``, or does not read its replies
-  for that long, is closed (answering pings does not count), so idle clients cannot hold the
-  ``max_connections`` slots and lock the simulator out with 503;
-* two ``Origin`` or two ``Host`` headers get 400;
-* saved frames stop once the image folder holds ``image_folder_max_mb`` (counted from what was
-  there at start), with one warning; driving goes on.
+upgrades from browser origins, under foreign ``Host`` names or beyond ``max_connections`` are
+refused (:mod:`clonedrive.udacity.admission`); a connection that sends no telemetry for
+``idle_timeout_s``, or does not read its replies for that long, is closed (answering pings does
+not count), so idle clients cannot hold the ``max_connections`` slots and lock the simulator out
+with 503; saved frames stop once the image folder holds ``image_folder_max_mb``
+(:mod:`clonedrive.udacity.frame_folder`), with one warning; driving goes on. The counters are
+:mod:`clonedrive.udacity.drive_stats`.
 """
 
 from __future__ import annotations
@@ -58,78 +41,41 @@ import os
 import threading
 import time
 import uuid
-from dataclasses import dataclass, field, replace
-from datetime import UTC, datetime
+from dataclasses import replace
 from pathlib import Path
-from urllib.parse import parse_qs, urlsplit
 
 from websockets.asyncio.server import Server, ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
-from clonedrive.config import write_bytes_atomic
 from clonedrive.drivers.network import Policy
-from clonedrive.output_files import probe_writable
 from clonedrive.udacity import protocol
+from clonedrive.udacity.admission import SOCKET_PATH, refusal
+from clonedrive.udacity.drive_stats import (
+    Connection,
+    DriveStats,
+    nan_count,
+    policy_for_connection,
+    worth_logging,
+)
+from clonedrive.udacity.frame_folder import FrameFolder
 from clonedrive.udacity.server_config import IDLE_CLOSE_CODE, DriveServerConfig
+from clonedrive.udacity.triage import CLOSE, IGNORE, MANUAL, PING, SAFE, TELEMETRY, triage
 
 logger = logging.getLogger("clonedrive.udacity")
 
 #: ``websockets`` closes a connection (1009) that sends a message longer than this.
 WEBSOCKET_MAX_SIZE = 2 << 20
-SOCKET_PATH = "/socket.io"
-_BAD_LOG_FIRST = 20  # bad messages logged in full per reason, then one in _BAD_LOG_EVERY
-_BAD_LOG_EVERY = 100
 #: An idle connection's close handshake gets this long [s] before the socket is dropped.
 IDLE_CLOSE_GRACE_S = 1.0
-
-
-@dataclass
-class DriveStats:
-    """Counters of one server's life (read them with :meth:`DriveServer.stats`)."""
-
-    connections: int = 0  # connections accepted, ever
-    active_connections: int = 0
-    messages: int = 0  # WebSocket messages received
-    steer: int = 0  # telemetry answered with the policy's controls
-    manual: int = 0  # telemetry null answered with manual
-    safe: int = 0  # telemetry-like frames answered with the safe command
-    pings: int = 0
-    ignored: int = 0  # frames logged and not answered
-    refused: dict[str, int] = field(default_factory=dict)  # upgrade refused: reason -> count
-    idle_closed: int = 0  # connections closed for sending no telemetry
-    frames_saved: int = 0
-    frames_not_saved: int = 0  # image folder over its cap
-    bad: dict[str, int] = field(default_factory=dict)  # reason -> count
-    last_steering: float = 0.0
-    last_throttle: float = 0.0
-    last_speed_mph: float = 0.0
-    nan_predictions: int = 0  # frames the policy counted as NaN/infinite predictions
-
-    @property
-    def bad_total(self) -> int:
-        return sum(self.bad.values())
 
 
 class _CloseRequested(Exception):
     """The client asked to close (Engine.IO close or Socket.IO disconnect)."""
 
 
-@dataclass
-class _Connection:
-    """One connected simulator: its own policy (the server's, forked: its own speed controller,
-    steering filter and hold) and its own counters."""
-
-    sid: str
-    policy: Policy
-    telemetry: int = 0  #: telemetry events answered with steer or manual
-    steer: int = 0  #: telemetry answered with the policy's controls
-    safe: int = 0  #: telemetry-like frames answered with the safe command
-    nan_predictions: int = 0  #: the policy's NaN count already added to the server's total
-
-
 #: The connection whose message is being handled (each handler task sets its own).
-_CONNECTION: contextvars.ContextVar[_Connection] = contextvars.ContextVar("drive_connection")
+_CONNECTION: contextvars.ContextVar[Connection] = contextvars.ContextVar("drive_connection")
 
 
 class DriveServer:
@@ -153,13 +99,12 @@ class DriveServer:
         self.host = config.host
         self.port = config.port
         self.image_folder = Path(config.image_folder) if config.image_folder is not None else None
+        self._frames = (FrameFolder(self.image_folder, config.image_folder_max_mb)
+                        if self.image_folder is not None else None)
         self.status_interval_s = config.status_interval_s
         self.max_message_bytes = config.max_message_bytes
         self.max_connections = config.max_connections
-        self._image_bytes = 0  # in the image folder: what was there at start plus what we saved
-        self._image_cap_reported = False
         self._stats = DriveStats()
-        self._last_frame_ms = 0
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop_event: asyncio.Event | None = None
@@ -210,7 +155,10 @@ class DriveServer:
 
     def stats(self) -> DriveStats:
         """A snapshot of the counters."""
-        return replace(self._stats, bad=dict(self._stats.bad), refused=dict(self._stats.refused))
+        frames = self._frames
+        saved, not_saved = (frames.saved, frames.over_cap) if frames is not None else (0, 0)
+        return replace(self._stats, bad=dict(self._stats.bad), refused=dict(self._stats.refused),
+                       frames_saved=saved, frames_not_saved=not_saved)
 
     @property
     def url(self) -> str:
@@ -229,8 +177,8 @@ class DriveServer:
     async def _main(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._stop_event = asyncio.Event()
-        if self.image_folder is not None:
-            self._image_bytes = prepare_image_folder(self.image_folder)
+        if self._frames is not None:
+            self._frames.prepare()
         self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="policy")
         status_task = None
         try:
@@ -292,48 +240,22 @@ class DriveServer:
     # ------------------------------------------------------------------ connections
 
     def _check_request(self, connection: ServerConnection, request: Request) -> Response | None:
-        origins, hosts = (request.headers.get_all(name) for name in ("Origin", "Host"))
-        if len(origins) > 1 or len(hosts) > 1:
-            return self._refuse(connection, 400, "headers",
-                                "more than one Origin or Host header")
-        origin, host = (values[0] if values else None for values in (origins, hosts))
-        if origin is not None and not self.config.origin_allowed(origin, self.port):
-            return self._refuse(connection, 403, "origin",
-                                f"browser origin {origin!r} refused: the simulator sends no "
-                                "Origin; allow one with --allow-origin")
-        if not self.config.host_allowed(host):
-            return self._refuse(connection, 403, "host",
-                                f"Host {host!r} does not name this server; allow it with "
-                                "--allow-host")
-        url = urlsplit(request.path)
-        if url.path.rstrip("/") != SOCKET_PATH:
-            return connection.respond(404, f"not found: the drive protocol is at {SOCKET_PATH}/\n")
-        query = parse_qs(url.query)
-        eio = query.get("EIO", ["3"])[-1]
-        if eio not in ("3", "4"):
-            return connection.respond(400, f"unsupported Engine.IO version EIO={eio}\n")
-        transport = query.get("transport", ["websocket"])[-1]
-        if transport != "websocket":
-            return connection.respond(400, "only the websocket transport is supported\n")
-        if self._stats.active_connections >= self.max_connections:
-            return self._refuse(connection, 503, "busy",
-                                f"too many connections ({self.max_connections}; idle ones close "
-                                f"after {self.config.idle_timeout_s:g} s)")
-        return None
-
-    def _refuse(self, connection: ServerConnection, status: int, reason: str,
-                detail: str) -> Response:
-        count = self._stats.refused.get(reason, 0) + 1
-        self._stats.refused[reason] = count
-        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
-            logger.warning("refused a connection from %s (%s, #%d): %s",
-                           connection.remote_address, reason, count, detail)
-        return connection.respond(status, detail + "\n")
+        """Accept the upgrade (None) or answer it with the error :mod:`~.admission` gives; a
+        refusal with a reason is counted and logged."""
+        refused = refusal(request, self.config, self.port, self._stats.active_connections)
+        if refused is None:
+            return None
+        if refused.reason is not None:
+            count = self._stats.refused.get(refused.reason, 0) + 1
+            self._stats.refused[refused.reason] = count
+            if worth_logging(count):
+                logger.warning("refused a connection from %s (%s, #%d): %s",
+                               connection.remote_address, refused.reason, count, refused.detail)
+        return connection.respond(refused.status, refused.detail + "\n")
 
     async def _handle_connection(self, websocket: ServerConnection) -> None:
-        policy = _policy_for_connection(self.policy)
-        connection = _Connection(uuid.uuid4().hex, policy,
-                                 nan_predictions=_nan_count(policy))
+        policy = policy_for_connection(self.policy)
+        connection = Connection(uuid.uuid4().hex, policy, nan_predictions=nan_count(policy))
         _CONNECTION.set(connection)  # this task's own: the message handlers count into it
         self._stats.connections += 1
         self._stats.active_connections += 1
@@ -354,7 +276,7 @@ class DriveServer:
                         connection.steer, connection.safe)
 
     async def _serve_connection(self, websocket: ServerConnection,
-                                connection: _Connection) -> None:
+                                connection: Connection) -> None:
         """Answer one connection's messages until it closes, asks to close, or goes idle: no
         telemetry for ``idle_timeout_s``, counting both waiting for a message and waiting to
         send a reply (a client that stops reading fills its send buffer)."""
@@ -383,7 +305,7 @@ class DriveServer:
                 return
 
     async def _send_by(self, websocket: ServerConnection, frame: str, deadline: float,
-                       connection: _Connection) -> bool:
+                       connection: Connection) -> bool:
         """Send ``frame``; False (the connection closed as idle) if it is not sent by
         ``deadline`` (loop time)."""
         try:
@@ -395,7 +317,7 @@ class DriveServer:
             return False
         return True
 
-    async def _close_idle(self, websocket: ServerConnection, connection: _Connection,
+    async def _close_idle(self, websocket: ServerConnection, connection: Connection,
                           reason: str) -> None:
         """Close an idle connection: the close handshake if the client answers it within
         :data:`IDLE_CLOSE_GRACE_S`, else the socket is dropped."""
@@ -412,58 +334,22 @@ class DriveServer:
     async def _on_message(self, message: str | bytes) -> str | None:
         """The reply frame to one received message, or None for no reply."""
         self._stats.messages += 1
-        if isinstance(message, bytes):
-            return self._ignore("binary", f"binary frame of {len(message)} bytes")
-        telemetry_like = message.startswith("42")
-        if len(message) > self.max_message_bytes:
-            detail = f"frame of {len(message)} bytes (limit {self.max_message_bytes})"
-            return (
-                self._safe("oversized", detail)
-                if telemetry_like
-                else self._ignore("oversized", detail)
-            )
-        try:
-            engine = protocol.decode_engine_packet(message)
-        except protocol.ProtocolError as error:
-            return self._ignore("garbage", str(error))
-        if engine.type == protocol.ENGINE_PING:
+        what = triage(message, self.max_message_bytes)
+        if what.outcome == TELEMETRY:
+            return await self._on_telemetry(what.payload)
+        if what.outcome == SAFE:
+            return self._safe(what.reason, what.detail)
+        if what.outcome == IGNORE:
+            return self._ignore(what.reason, what.detail)
+        if what.outcome == CLOSE:
+            raise _CloseRequested
+        if what.outcome == PING:
             self._stats.pings += 1
-            return protocol.ENGINE_PONG + engine.data
-        if engine.type in (protocol.ENGINE_PONG, protocol.ENGINE_UPGRADE, protocol.ENGINE_NOOP):
-            return None
-        if engine.type == protocol.ENGINE_CLOSE:
-            raise _CloseRequested
-        if engine.type == protocol.ENGINE_OPEN:
-            return self._ignore("garbage", "a client does not send Engine.IO open")
-        return await self._on_socket_message(engine.data, telemetry_like)
-
-    async def _on_socket_message(self, data: str, telemetry_like: bool) -> str | None:
-        try:
-            packet = protocol.decode_socket_packet(data)
-        except protocol.ProtocolError as error:
-            if telemetry_like:
-                return self._safe("not_json", str(error))
-            return self._ignore("garbage", str(error))
-        if packet.namespace != protocol.DEFAULT_NAMESPACE:
-            return self._ignore("namespace", f"namespace {packet.namespace!r} is not served")
-        if packet.type == protocol.SOCKET_CONNECT:
-            return protocol.CONNECT_FRAME
-        if packet.type == protocol.SOCKET_DISCONNECT:
-            raise _CloseRequested
-        if packet.type != protocol.SOCKET_EVENT:
-            return self._ignore("garbage", f"Socket.IO packet type {packet.type} not handled")
-        try:
-            name, args = protocol.event_of(packet)
-        except protocol.ProtocolError as error:
-            return self._safe("bad_event", str(error))
-        if name != "telemetry":
-            return self._ignore("unknown_event", f"event {name!r} is not handled")
-        payload = args[0] if args else None
-        if payload is None:
+        elif what.outcome == MANUAL:
             self._stats.manual += 1
             _CONNECTION.get().telemetry += 1
             return protocol.MANUAL_FRAME
-        return await self._on_telemetry(payload)
+        return what.frame
 
     async def _on_telemetry(self, payload: object) -> str:
         try:
@@ -502,54 +388,29 @@ class DriveServer:
         image_rgb = protocol.decode_image(telemetry.image_jpeg)
         steering, throttle = policy.act(image_rgb, telemetry.speed_mph)
         save_error = None
-        if self.image_folder is not None:
-            save_error = self._save_frame(telemetry.image_jpeg)
+        if self._frames is not None:
+            save_error = self._frames.save(telemetry.image_jpeg)
         return float(steering), float(throttle), save_error
-
-    def _save_frame(self, jpeg: bytes) -> str | None:
-        cap_bytes = self.config.image_folder_max_mb * 1e6
-        if self._image_bytes + len(jpeg) > cap_bytes:
-            self._stats.frames_not_saved += 1
-            if not self._image_cap_reported:
-                self._image_cap_reported = True
-                logger.warning("image folder %s holds %.0f MB, its cap is %g MB "
-                               "(--image-folder-max-mb): received frames are no longer saved",
-                               self.image_folder, self._image_bytes / 1e6,
-                               self.config.image_folder_max_mb)
-            return None
-        # Names are strictly increasing: a frame within the same millisecond gets the next one.
-        now_ms = max(time.time_ns() // 1_000_000, self._last_frame_ms + 1)
-        self._last_frame_ms = now_ms
-        stamp = datetime.fromtimestamp(now_ms // 1000, tz=UTC)
-        name = f"{stamp:%Y_%m_%d_%H_%M_%S}_{now_ms % 1000:03d}.jpg"
-        path = self.image_folder / name
-        try:
-            write_bytes_atomic(path, jpeg)
-        except OSError as error:
-            return f"cannot save {path}: {error}"
-        self._image_bytes += len(jpeg)
-        self._stats.frames_saved += 1
-        return None
 
     # ------------------------------------------------------------------ bookkeeping
 
-    def _count_nan_predictions(self, connection: _Connection) -> None:
+    def _count_nan_predictions(self, connection: Connection) -> None:
         """Add the connection's new NaN predictions (a NetworkPolicy counts them) to the
         server's total; log them."""
-        count = _nan_count(connection.policy)
+        count = nan_count(connection.policy)
         if count <= connection.nan_predictions:
             return
         self._stats.nan_predictions += count - connection.nan_predictions
         connection.nan_predictions = count
         count = self._stats.nan_predictions
-        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
+        if worth_logging(count):
             logger.warning("the model predicted NaN steering (%d frame(s) so far); "
                            "sent straight steering instead", count)
 
     def _bad(self, reason: str, detail: str) -> None:
         count = self._stats.bad.get(reason, 0) + 1
         self._stats.bad[reason] = count
-        if count <= _BAD_LOG_FIRST or count % _BAD_LOG_EVERY == 0:
+        if worth_logging(count):
             logger.warning("bad message (%s, #%d): %s", reason, count, detail)
 
     def _safe(self, reason: str, detail: str) -> str:
@@ -564,37 +425,6 @@ class DriveServer:
         self._bad(reason, detail + " -> ignored")
         self._stats.ignored += 1
         return None
-
-
-def prepare_image_folder(folder: Path) -> int:
-    """Create ``folder`` if needed, check that frames can be written there, and return the
-    bytes its files hold already. Raises ``ValueError`` naming the folder (not a socket
-    error) when it is a file or cannot be written."""
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"image folder {folder} is an existing file, not a folder")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        probe_writable(folder, f".write-test-{os.getpid()}")
-    except OSError as error:
-        raise ValueError(f"image folder {folder}: cannot write there ({error.strerror})") from None
-    total = 0
-    with os.scandir(folder) as entries:
-        for entry in entries:
-            if entry.is_file(follow_symlinks=False):
-                total += entry.stat(follow_symlinks=False).st_size
-    return total
-
-
-def _policy_for_connection(policy: Policy) -> Policy:
-    """The policy one connection drives with: its own fork where the policy keeps state per
-    car (:meth:`~clonedrive.drivers.network.NetworkPolicy.fork`), else the shared one."""
-    fork = getattr(policy, "fork", None)
-    return fork() if callable(fork) else policy
-
-
-def _nan_count(policy: Policy) -> int:
-    """The NaN predictions ``policy`` has counted over its life (0 if it counts none)."""
-    return int(getattr(policy, "nan_predictions", 0) or 0)
 
 
 def _bound_port(server: Server, requested: int) -> int:

@@ -66,7 +66,8 @@ class WebApp:
         """Listen (OSError when the port is taken) and open the session's track."""
         from dataclasses import replace
 
-        from clonedrive.manual.session import DrivingSession, ManualConfig
+        from clonedrive.manual.config import ManualConfig
+        from clonedrive.manual.session import DrivingSession
         from clonedrive.sim.simulator import SimConfig
         from clonedrive.web.controller import Controller
         from clonedrive.web.server import WebServer

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-from clonedrive.manual.session import DRIVING_KEYS, GAMEPAD_AXES
+from clonedrive.manual.human_input import DRIVING_KEYS, GAMEPAD_AXES
 from clonedrive.web.config import MODES, VIEWS, finite
 
 #: Keys a page may press: the driving keys and M (mouse steering). Modes, recording and

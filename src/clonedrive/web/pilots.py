@@ -1,6 +1,6 @@
 """Pilots for the session's autonomous mode, in this process: the expert autopilot and a model.
 
-Both follow :class:`~clonedrive.manual.session.Pilot`: ``controls(obs)`` for each step,
+Both follow :class:`~clonedrive.manual.pilot.Pilot`: ``controls(obs)`` for each step,
 ``manual()`` while a person takes over, ``close()`` when autonomous mode ends.
 """
 

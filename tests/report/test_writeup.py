@@ -291,6 +291,8 @@ def test_the_summary_leads_with_clean_laps_calm_and_fast_and_names_the_recipe(
     runs = evaluation["runs"]
     clean = sum(run["laps_completed"] for run in runs)
     assert first.startswith(f"- **{clean}/{sum(run['laps_target'] for run in runs)} laps clean**")
+    interventions = sum(run["interventions"] for run in runs)
+    assert f"({interventions} intervention{'' if interventions == 1 else 's'})" in first
     assert "mph" in first
     results = _section(markdown, SECTION_TITLES["results"])
     assert "recipe **best v1**" in results

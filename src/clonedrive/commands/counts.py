@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 from clonedrive.data.driving_log import MAX_LOG_ROWS
 from clonedrive.evaluate.config import MAX_COUNTS as EVALUATE_MAX
+from clonedrive.evaluate.video import FPS_RANGE
 from clonedrive.model.train import MAX_COUNTS as TRAIN_MAX
 from clonedrive.udacity_spec import IMAGE_HEIGHT
 
@@ -50,8 +51,8 @@ MAX_ROWS = MAX_LOG_ROWS
 MAX_CONNECTIONS = 1_024
 #: Rows cut from the top of a camera image: fewer than the image has.
 MAX_CROP_TOP_PX = IMAGE_HEIGHT - 1
-#: Frames per second of a video.
-MAX_FPS = 240.0
+#: Frames per second of a video (the writer's own range, evaluate.video.FPS_RANGE).
+MAX_FPS = FPS_RANGE[1]
 
 
 def count(most: int) -> Callable[[str], int]:

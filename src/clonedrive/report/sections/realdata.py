@@ -44,11 +44,9 @@ def build(ctx: ReportContext) -> list[Section]:
         "recorded values."))
     rows, figures = [], []
     crosscheck_root = ctx.figures_dir.parent / "crosscheck"
-    replayed = []
     for log in logs:
         log = Path(log)
         stem = safe_stem(log.resolve().name)
-        replayed.append(_replay(ctx, policy, model_path, log, stem, section))
         try:
             report = crosscheck(policy, log, crosscheck_root / stem, config,
                                 model_path=str(model_path))
@@ -68,6 +66,8 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(("log", "rows", "RMSE", "always 0", "always the mean", "r",
                                      "r raw"), tuple(rows), align="lrrrrrr"))
     section.blocks += figures
+    replayed = [_replay(ctx, policy, model_path, Path(log), safe_stem(Path(log).resolve().name),
+                        section) for log in logs]
     replayed = [entry for entry in replayed if entry is not None]
     if replayed:
         section.blocks += _replay_blocks(replayed)

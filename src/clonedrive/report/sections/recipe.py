@@ -48,7 +48,8 @@ def lead(runs: list[dict], recipe: dict | None = None) -> str:
                      if isinstance(run.get("speed_mph"), int | float)})
     caps = (f"{speeds[0]:g}" if len(speeds) == 1 else
             f"{', '.join(f'{s:g}' for s in speeds[:-1])} and {speeds[-1]:g}") if speeds else "?"
-    text = (f"**{figures['clean_laps']} laps clean** ({figures['interventions']} interventions) "
+    text = (f"**{figures['clean_laps']} laps clean** "
+            f"({fmt.plural(figures['interventions'], 'intervention')}) "
             f"at set speeds of {caps} mph")
     calm = figures["steering_rate_ratio"]
     if calm is not None:

@@ -51,7 +51,7 @@ def build(ctx: ReportContext) -> list[Section]:
             ctx.headline(
                 f"Closed loop, {label}: {total['laps_completed']}/{total['laps_target']} "
                 f"laps ({fmt.num(total.get('laps_completed_pct'), 0)} %), "
-                f"{total['interventions']} interventions.")
+                f"{fmt.plural(total['interventions'], 'intervention')}.")
     speed = Section("Speed control", level=3)
     speed.blocks.append(Paragraph(_speed_text(report)))
     maps = Section("Track maps", level=3)

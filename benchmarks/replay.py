@@ -17,8 +17,8 @@
    (``sim_rank_correlation_offset``), and the mean |difference| in interventions per km.
 
 Run: python benchmarks/replay.py [--rows 200] [--model best=runs/demo/train/model.keras]
-     [--replay-log DIR ...] [--sim-model LABEL=PATH ... --sim-condition lake@15 ...]
-     [--trust-model]
+     [--replay-log DIR ...] [--sim-model LABEL=PATH ... --sim-condition lake@15 ...
+     --sim-max-offset default|road] [--trust-model]
 Ends with one JSON line: {"side_view_error_ratio", "side_view_error_synthesised",
 "side_view_error_unshifted", "side_view_error_ratio_unsmoothed",
 "side_view_error_ratio_default_rig", "rows_compared", "rows_better", "fitted_left_x_m",
@@ -129,13 +129,27 @@ def replay_figures(models: list[str], logs: list[Path], trust: bool) -> dict:
     return results
 
 
-def sim_comparison(models: list[str], conditions: list[str], trust: bool) -> dict:
+def road_offset_m(track_name: str) -> float:
+    """The offset from the centre line at which a tyre leaves the narrowest stretch of the
+    track: where ``evaluate`` counts an intervention (``--sim-max-offset road``)."""
+    from clonedrive.world.catalog import load_track
+    from clonedrive.world.vehicle import VehicleParams
+
+    track = load_track(track_name)
+    return round(0.5 * float(np.min(track.width)) - 0.5 * VehicleParams().track_width_m, 3)
+
+
+def sim_comparison(models: list[str], conditions: list[str], trust: bool,
+                   max_offset: str = "default") -> dict:
     """Each model replayed on a clonedrive-recorded lap (three cameras) and driven in true closed
     loop on the same track at the same speed: rank correlations between the two over all
-    (model, condition) pairs, and the mean |difference| of interventions per km."""
+    (model, condition) pairs, and the mean |difference| of interventions per km.
+    ``max_offset``: ``default`` (the replay's 1 m from the expert's path) or ``road`` (where a
+    tyre would leave the track's narrowest stretch, the true loop's intervention)."""
     from scipy.stats import spearmanr
 
     from clonedrive.drivers.network import load_policy
+    from clonedrive.replay.episode import ReplayConfig
     from clonedrive.replay.output import replay
 
     pairs = []
@@ -144,10 +158,12 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool) -> dic
             track, _, speed = condition.partition("@")
             lap = Path(scratch) / f"{track}_{speed}"
             _cli("record", "--track", track, "--laps", "1", "--speed", speed, "--out", str(lap))
+            config = (ReplayConfig(max_offset_m=road_offset_m(track)) if max_offset == "road"
+                      else ReplayConfig())
             for entry in models:
                 label, _, path = entry.partition("=")
                 report = replay(load_policy(path, trust=trust), [lap],
-                                Path(scratch) / "replay" / label / lap.name)["totals"]
+                                Path(scratch) / "replay" / label / lap.name, config)["totals"]
                 extra = ["--trust-model"] if trust else []
                 run = json.loads(_cli("evaluate", path, "--track", track, "--speed", speed,
                                       "--laps", "1", "--json", *extra,
@@ -155,6 +171,7 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool) -> dic
                                  )["runs"][0]
                 true_per_km = run["interventions"] / (run["distance_m"] / 1000.0)
                 pairs.append({"model": label, "condition": condition,
+                              "replay_max_offset_m": config.max_offset_m,
                               "replay_interventions_per_km": report["interventions_per_km"],
                               "sim_interventions_per_km": round(true_per_km, 3),
                               "replay_mean_abs_offset_m": report["mean_abs_offset_m"],
@@ -195,6 +212,9 @@ def main() -> None:
                         help="replay against true closed loop in clonedrive (repeatable)")
     parser.add_argument("--sim-condition", action="append", default=None, metavar="TRACK@MPH",
                         help="track and speed of the sim comparison (default: lake@15)")
+    parser.add_argument("--sim-max-offset", choices=("default", "road"), default="default",
+                        help="the replay's intervention in the sim comparison: 1 m from the "
+                             "expert's path (default), or where a tyre leaves the road (road)")
     parser.add_argument("--trust-model", action="store_true")
     args = parser.parse_args()
 
@@ -214,7 +234,7 @@ def main() -> None:
     result["replay"] = replay_figures(args.model, logs, args.trust_model) if args.model else {}
     if args.sim_model:
         result.update(sim_comparison(args.sim_model, args.sim_condition or ["lake@15"],
-                                     args.trust_model))
+                                     args.trust_model, args.sim_max_offset))
     print(json.dumps(result))
 
 

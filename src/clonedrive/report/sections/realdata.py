@@ -44,9 +44,8 @@ def build(ctx: ReportContext) -> list[Section]:
         "recorded values."))
     rows, figures = [], []
     crosscheck_root = ctx.figures_dir.parent / "crosscheck"
-    for log in logs:
-        log = Path(log)
-        stem = safe_stem(log.resolve().name)
+    named = [(Path(log), safe_stem(Path(log).resolve().name)) for log in logs]
+    for log, stem in named:
         try:
             report = crosscheck(policy, log, crosscheck_root / stem, config,
                                 model_path=str(model_path))
@@ -66,16 +65,19 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(("log", "rows", "RMSE", "always 0", "always the mean", "r",
                                      "r raw"), tuple(rows), align="lrrrrrr"))
     section.blocks += figures
-    replayed = [_replay(ctx, policy, model_path, Path(log), safe_stem(Path(log).resolve().name),
-                        section) for log in logs]
+    from clonedrive.replay.episode import ReplayConfig
+
+    replay_config = ReplayConfig()
+    replayed = [_replay(ctx, policy, model_path, log, stem, section, replay_config)
+                for log, stem in named]
     replayed = [entry for entry in replayed if entry is not None]
     if replayed:
-        section.blocks += _replay_blocks(replayed)
+        section.blocks += _replay_blocks(replayed, replay_config)
     return [section]
 
 
 def _replay(ctx: ReportContext, policy, model_path: Path, log: Path, stem: str,
-            section: Section) -> tuple[str, dict, Figure] | None:
+            section: Section, config) -> tuple[str, dict, Figure] | None:
     """Replay the model through ``log`` into ``OUT/replay/<stem>/``: (log name, the figures
     over the log, the offset plot), or None after a note saying why it could not."""
     from clonedrive.data.driving_log import DrivingLogError
@@ -83,7 +85,7 @@ def _replay(ctx: ReportContext, policy, model_path: Path, log: Path, stem: str,
 
     out = ctx.figures_dir.parent / "replay" / stem
     try:
-        report = replay(policy, [log], out, model_path=str(model_path))
+        report = replay(policy, [log], out, config, model_path=str(model_path))
     except (FileNotFoundError, ValueError, DrivingLogError) as error:
         section.blocks.append(ctx.note(f"`{log.name}`: not replayed ({error})."))
         return None
@@ -97,11 +99,9 @@ def _replay(ctx: ReportContext, policy, model_path: Path, log: Path, stem: str,
     return log.name, figures, plot
 
 
-def _replay_blocks(replayed: list[tuple[str, dict, Figure]]) -> list:
-    """The closed-loop paragraph, its table and the offset plots."""
-    from clonedrive.replay.episode import ReplayConfig
-
-    config = ReplayConfig()
+def _replay_blocks(replayed: list[tuple[str, dict, Figure]], config) -> list:
+    """The closed-loop paragraph (``config``: the replays' ReplayConfig), its table and the
+    offset plots."""
     rows = tuple(
         (f"`{name}`", str(figures["episodes"]), fmt.num(figures["distance_m"], 0),
          fmt.num(figures["autonomy_pct"], 1), str(figures["interventions"]),
@@ -117,8 +117,8 @@ def _replay_blocks(replayed: list[tuple[str, dict, Figure]]) -> list:
             f"{config.max_offset_m:g} m from the path an intervention puts it back. Autonomy "
             f"= (1 - interventions x {config.intervention_penalty_s:g} s / elapsed) x 100, as "
             "NVIDIA's PilotNet paper measured it: 100 % is no help needed; it reaches 0 % at "
-            "one intervention per 6 s of driving. Jitter is the steering's mean change per "
-            "second; the human's is in brackets."),
+            f"one intervention per {config.intervention_penalty_s:g} s of driving. Jitter is "
+            "the steering's mean change per second; the human's is in brackets."),
         Table(("log", "episodes", "distance m", "autonomy %", "interventions", "per km",
                "mean |offset| m", "jitter /s (human)"), rows, align="lrrrrrrr"),
         *(figure for _, _, figure in replayed),

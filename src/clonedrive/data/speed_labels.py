@@ -76,9 +76,10 @@ def read_speed_labels(folder: str | os.PathLike) -> SpeedLabels | None:
             "stand in for the expert's target speed)")
         return labels
     raw = path.read_bytes()
-    if count_lines(raw) > MAX_LOG_ROWS + 1:  # one label per row of the log, and a header
+    line_count = count_lines(raw)
+    if line_count > MAX_LOG_ROWS + 1:  # one label per row of the log, and a header
         labels.warnings.append(
-            f"{path}: {count_lines(raw):,} lines, more than the {MAX_LOG_ROWS:,} rows a driving "
+            f"{path}: {line_count:,} lines, more than the {MAX_LOG_ROWS:,} rows a driving "
             "log may have; not read (recorded speeds stand in for the expert's target speed)")
         return labels
     text = raw.decode("utf-8", errors="replace")

@@ -13,7 +13,8 @@ import importlib
 import os
 import signal
 import sys
-import threading
+
+from clonedrive.interrupts import Terminated, interruptible
 
 # (verb, module under clonedrive.commands) in data-flow order.
 VERBS: list[tuple[str, str]] = [
@@ -111,28 +112,14 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return text + super()._get_help_string(action)[len(action.help or ""):]
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM arrived: handled as Ctrl-C is (what is written stays written, worker processes
-    stop, temporary files go), with exit status 128 + 15."""
-
-
-def _raise_terminated(signum: int, frame: object) -> None:
-    raise Terminated
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.verb is None:
         parser.print_help()
         return 2
-    in_main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _raise_terminated) if in_main_thread else None
-    try:
+    with interruptible():
         return _run_verb(args)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _run_verb(args: argparse.Namespace) -> int:

@@ -58,6 +58,7 @@ from clonedrive.data.recipe import (
     recipe_to_toml,
 )
 from clonedrive.drivers.crop import visible_rows
+from clonedrive.interrupts import raise_if_lost
 from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 
 logger = logging.getLogger(__name__)
@@ -214,8 +215,9 @@ def train(
     save_config(config, out / "config.json")
     write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
 
-    data = _prepare_data(config, recipe, out, progress=progress)
+    data = None
     try:
+        data = _prepare_data(config, recipe, out, progress=progress)
         write_json_atomic(out / "dataset.json", data.report)
         _print(progress, data.summary)
         epochs_done = state["epochs_done"]
@@ -259,7 +261,10 @@ def train(
                 callbacks=[recorder],
             )
     finally:
-        data.cache.close(delete=True)
+        if data is not None:
+            data.cache.close(delete=True)
+        # Interrupted while the cache was being made: its file goes too.
+        (out / CACHE_FILE).unlink(missing_ok=True)
 
     if config.export_h5 and (out / "model.keras").is_file():
         export_h5(out / "model.keras", out / "model.h5", notes=notes)
@@ -632,6 +637,12 @@ def _run_recorder_class():
 
         def on_epoch_begin(self, epoch, logs=None):
             self._epoch_started = time.perf_counter()
+
+        def on_train_batch_end(self, batch, logs=None):
+            raise_if_lost()  # a SIGTERM whose exception a destructor swallowed ends here
+
+        def on_test_batch_end(self, batch, logs=None):
+            raise_if_lost()
 
         def on_epoch_end(self, epoch, logs=None):
             logs = logs or {}

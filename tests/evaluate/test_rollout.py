@@ -232,3 +232,29 @@ def test_parts_are_one_evaluation_scheduled_on_one_pool(tmp_path):
         [[r[k] for k in keys] for r in alone[0] + alone[1]]
     saved = json.loads((tmp_path / "both" / "config.json").read_text(encoding="utf-8"))
     assert [part["laps"] for part in saved["parts"]] == [2, 1]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_track_is_resolved_once_and_the_loaded_track_drives(tmp_path, tiny_model_path,
+                                                              workers):
+    """The Track the caller loaded goes down to the simulators, the workers and the expert's
+    reference: the file it came from is gone before anything drives."""
+    from clonedrive.drivers.network import load_policy
+    from clonedrive.world.catalog import load_track
+
+    path = tmp_path / "mine.json"
+    path.write_text(LAKE_JSON.read_text(encoding="utf-8").replace('"lake"', '"mine"', 1),
+                    encoding="utf-8")
+    tracks = {str(path): load_track(path)}
+    path.unlink()
+    config = EvalConfig(tracks=(str(path),), speeds_mph=(15.0, 20.0), laps=1, scenery=False,
+                        max_seconds=3.0, batch=1, workers=workers)
+    report = evaluate(load_policy(tiny_model_path), config, tmp_path / "eval", progress=False,
+                      model_path=str(tiny_model_path), tracks=tracks)
+    assert report["complete"]
+    assert [run["track"] for run in report["runs"]] == [str(path)] * 2
+    assert all(run["expert"]["lap_time_s"] is None for run in report["runs"])  # 3 s: no lap
+    assert all(run["distance_m"] > 0 and run["expert"]["mean_speed_mph"] > 0
+               for run in report["runs"])
+    with pytest.raises(Exception, match="mine.json"):
+        load_track(path)  # the name alone no longer resolves

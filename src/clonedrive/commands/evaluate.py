@@ -85,8 +85,7 @@ def run(args) -> int:
     d = EvalConfig()
     tracks = args.track if args.track is not None else ([] if args.unseen else list(d.tracks))
     try:
-        for name in tracks:
-            load_track(name)
+        resolved = {name: load_track(name) for name in tracks}  # loaded once, passed down
     except TrackError as error:
         print(f"clonedrive evaluate: {error}", file=sys.stderr)
         return 2
@@ -124,7 +123,8 @@ def run(args) -> int:
     with lock:
         report = evaluate(policy, config, out, progress=not args.json,
                           model_path=str(args.model),
-                          model_options={"trust": args.trust_model, "runtime": args.runtime})
+                          model_options={"trust": args.trust_model, "runtime": args.runtime},
+                          tracks=resolved)
     if args.json:
         print(json.dumps(report, indent=2))
     else:

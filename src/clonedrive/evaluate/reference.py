@@ -14,6 +14,10 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from clonedrive.world.track import Track
 
 #: Expert references kept per process (the oldest dropped first).
 CACHED_REFERENCES = 256
@@ -21,16 +25,18 @@ _CACHE: OrderedDict = OrderedDict()
 _CACHE_LOCK = threading.Lock()
 
 
-def expert_reference(track: str, speed_mph: float, *, laps: int = 1,
+def expert_reference(track: str | Track, speed_mph: float, *, laps: int = 1,
                      max_seconds: float | None = None) -> dict:
-    """The expert's run summary on ``track`` at up to ``speed_mph`` (see the module doc)."""
+    """The expert's run summary on ``track`` (a name or path, or the loaded :class:`Track`) at
+    up to ``speed_mph`` (see the module doc)."""
     from clonedrive.world.catalog import load_track
 
-    loaded = load_track(track)
+    loaded = load_track(track) if isinstance(track, str) else track
+    name = track if isinstance(track, str) else track.name
     key = (loaded.geometry_key(), float(speed_mph), int(laps), max_seconds)
     with _CACHE_LOCK:
         if key not in _CACHE:
-            _CACHE[key] = _drive_expert(loaded, str(track), float(speed_mph), int(laps),
+            _CACHE[key] = _drive_expert(loaded, name, float(speed_mph), int(laps),
                                         max_seconds)
             while len(_CACHE) > CACHED_REFERENCES:
                 _CACHE.popitem(last=False)
@@ -54,14 +60,16 @@ def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: fl
         return episode.trace.summary()
 
 
-def against_expert(run: dict, *, max_seconds: float | None = None) -> dict:
+def against_expert(run: dict, *, max_seconds: float | None = None,
+                   track: Track | None = None) -> dict:
     """For one run's summary (eval.json entry): ``expert`` (the expert's lap time and
     smoothness figures on the same track, cap and laps), ``lap_time_ratio`` (None unless both
-    drove a clean first lap) and the ``<figure>_ratio`` of every smoothness figure."""
+    drove a clean first lap) and the ``<figure>_ratio`` of every smoothness figure. ``track``:
+    the run's track as it drove it (else loaded from the run's track name)."""
     from clonedrive.episode.smoothness import FIGURES, smoothness_ratios
 
-    expert = expert_reference(run["track"], run["speed_mph"], laps=run["laps_target"],
-                              max_seconds=max_seconds)
+    expert = expert_reference(run["track"] if track is None else track, run["speed_mph"],
+                              laps=run["laps_target"], max_seconds=max_seconds)
     mine, theirs = run.get("lap_time_s"), expert.get("lap_time_s")
     return {
         "expert": {key: expert.get(key) for key in ("lap_time_s", "smoothness", *FIGURES,

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -43,6 +43,7 @@ from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
     from clonedrive.sim.camera_pool import CameraPool
+    from clonedrive.world.track import Track
 
 
 @dataclass
@@ -147,7 +148,8 @@ def _groups(parts: list[EvalConfig], part_specs: list[list[RunSpec]], workers: i
 
 def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | Path, *,
              progress: bool = True, model_path: str | None = None,
-             model_options: dict | None = None) -> dict:
+             model_options: dict | None = None,
+             tracks: Mapping[str, Track] | None = None) -> dict:
     """Drive every run of ``config`` with ``policy`` (a NetworkPolicy) and write the results.
 
     Writes ``config.json``, ``eval.json`` (again after each finished run), a map PNG per run,
@@ -166,11 +168,15 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     first. The results do not depend on that order. Driven in this process instead (one worker,
     or an in-memory model) and without video, a group's network runs on a second thread beside
     the rendering (``Runner(overlap=True)``), in two half-size batches.
+
+    Each track is resolved once (``tracks``: those the caller already loaded, by the name the
+    config gives) and the :class:`Track` itself goes to the simulators, the workers and the
+    expert's reference: a track file edited while an evaluation runs changes nothing in it.
     """
     from clonedrive.config import config_to_dict
     from clonedrive.keras_backend import compute_threads
     from clonedrive.progress import progress_bar
-    from clonedrive.workers import default_workers, run_tasks
+    from clonedrive.workers import default_workers
 
     parts = [config] if isinstance(config, EvalConfig) else list(config)
     if not parts:
@@ -182,6 +188,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     part_specs = [run_specs(part) for part in parts]
     specs = [spec for specs in part_specs for spec in specs]
     part_of = [number for number, specs in enumerate(part_specs) for _ in specs]
+    resolved = resolve_tracks([spec.track for spec in specs], tracks)
     report = _report_header(policy, first, model_path)
     # A previous evaluation's eval.json goes first: an interrupted run must never leave this
     # run's config.json beside another run's results marked complete.
@@ -196,19 +203,21 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     def publish(index: int, result: dict) -> None:
         part = parts[part_of[index]]
         if part.expert_reference:
-            result.update(against_expert(result, max_seconds=part.max_seconds))
+            result.update(against_expert(result, max_seconds=part.max_seconds,
+                                         track=resolved[specs[index].track]))
         finished[index] = result
         report["runs"] = [finished[i] for i in sorted(finished)]
         report["totals"] = _totals(report["runs"])
         report["complete"] = len(finished) == len(specs)
         write_json_atomic(out / "eval.json", report)
 
-    names = _run_names(specs)
+    names = _run_names(specs, resolved)
     workers = first.workers or default_workers()
     if model_path is None:
         workers = 1  # an in-memory model cannot be loaded by another process
     groups = _groups(parts, part_specs, workers)
-    expected = [sum(_expected_steps(spec, part) for _, spec in group) for part, group in groups]
+    expected = [sum(_expected_steps(spec, part, resolved[spec.track]) for _, spec in group)
+                for part, group in groups]
     # Only built-in tracks get video; a step with a video frame costs about half a step more.
     filmed = [part.video and any(not spec.unseen for _, spec in group) for part, group in groups]
     cost = [steps * (1.5 if video else 1.0) for steps, video in zip(expected, filmed, strict=True)]
@@ -223,32 +232,47 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
             threads = 1 if overlap else (max(1, default_workers() // 2) if any(filmed) else None)
             with compute_threads(threads):
                 for part, group in groups:
-                    _drive_group(policy, group, names, part, out, bar, publish,
+                    _drive_group(policy, group, names, part, out, bar, publish, resolved,
                                  overlap=overlap and not part.video_saliency)
         else:
-            # Longest first, so that the last group to start is a short one.
-            order = sorted(range(len(groups)), key=lambda i: -cost[i])
-            # Each worker builds a policy that drives as ``policy`` does: from the model's
-            # checked traces where it runs traced (no Keras to import: ~3 s less per worker),
-            # else from the model file (also for saliency videos: they need the Keras model).
-            policy_options = policy.options() if hasattr(policy, "options") else {}
-            portable = None
-            if hasattr(policy, "portable") and not any(part.video_saliency for part in parts):
-                portable = policy.portable(max(len(group) for _, group in groups))
-            tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
-                      "policy_options": policy_options, "portable": portable,
-                      "group": groups[i][1], "names": names, "config": groups[i][0],
-                      "out": str(out)} for i in order]
-
-            def on_done(task: int, results: list[tuple[int, dict]]) -> None:
-                for index, result in results:
-                    publish(index, result)
-                bar.update(expected[order[task]])
-
-            run_tasks(_drive_group_task, tasks, workers=workers, on_done=on_done)
+            _drive_in_workers(policy, parts, groups, names, out, resolved, workers,
+                              cost=cost, model_path=model_path, model_options=model_options,
+                              on_results=publish,
+                              on_group=lambda group: bar.update(expected[group]))
     finally:
         bar.close()
     return report
+
+
+def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list[str],
+                      out: Path, tracks: Mapping[str, Track], workers: int, *,
+                      cost: list[float], model_path: str, model_options: dict | None,
+                      on_results, on_group) -> None:
+    """Drive each group in a worker process, longest first (so that the last group to start
+    is a short one); ``on_results(index, result)`` for each run, ``on_group(group)`` after
+    each group."""
+    from clonedrive.workers import run_tasks
+
+    order = sorted(range(len(groups)), key=lambda i: -cost[i])
+    # Each worker builds a policy that drives as ``policy`` does: from the model's checked
+    # traces where it runs traced (no Keras to import: ~3 s less per worker), else from the
+    # model file (also for saliency videos: they need the Keras model).
+    policy_options = policy.options() if hasattr(policy, "options") else {}
+    portable = None
+    if hasattr(policy, "portable") and not any(part.video_saliency for part in parts):
+        portable = policy.portable(max(len(group) for _, group in groups))
+    tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
+              "policy_options": policy_options, "portable": portable,
+              "group": groups[i][1], "names": names, "config": groups[i][0],
+              "tracks": {spec.track: tracks[spec.track] for _, spec in groups[i][1]},
+              "out": str(out)} for i in order]
+
+    def on_done(task: int, results: list[tuple[int, dict]]) -> None:
+        for index, result in results:
+            on_results(index, result)
+        on_group(order[task])
+
+    run_tasks(_drive_group_task, tasks, workers=workers, on_done=on_done)
 
 
 def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
@@ -263,27 +287,35 @@ def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
                          portable=task.get("portable"), **options)
     results: list[tuple[int, dict]] = []
     _drive_group(policy, task["group"], task["names"], config, Path(task["out"]), None,
-                 lambda index, result: results.append((index, result)))
+                 lambda index, result: results.append((index, result)), task["tracks"])
     return results
 
 
-def _run_names(specs: list[RunSpec]) -> list[str]:
-    """Each run's file-name stem, fixed before any run drives (so workers cannot clash)."""
+def resolve_tracks(names: Sequence[str], known: Mapping[str, Track] | None = None
+                   ) -> dict[str, Track]:
+    """Each distinct track name's :class:`Track`, loaded once (``known``: already loaded)."""
     from clonedrive.world.catalog import load_track
 
+    resolved = dict(known or {})
+    for name in names:
+        if name not in resolved:
+            resolved[name] = load_track(name)
+    return resolved
+
+
+def _run_names(specs: list[RunSpec], tracks: Mapping[str, Track]) -> list[str]:
+    """Each run's file-name stem, fixed before any run drives (so workers cannot clash)."""
     taken: set[str] = set()
     names = []
     for spec in specs:
-        name = run_name(load_track(spec.track).name, spec.speed_mph, taken)
+        name = run_name(tracks[spec.track].name, spec.speed_mph, taken)
         taken.add(name)
         names.append(name)
     return names
 
 
-def _expected_steps(spec: RunSpec, config: EvalConfig) -> int:
-    from clonedrive.world.catalog import load_track
-
-    length = load_track(spec.track).length_m
+def _expected_steps(spec: RunSpec, config: EvalConfig, track: Track) -> int:
+    length = track.length_m
     seconds = spec.laps * length / max(spec.speed_mph * MPH_TO_MPS * 0.85, 1.0)
     if config.max_seconds is not None:
         seconds = min(seconds, config.max_seconds)
@@ -301,11 +333,11 @@ def _rendering(policy, config: EvalConfig) -> dict:
 
 
 def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Path,
-              pool: CameraPool, rows: tuple[int, int] | None) -> _Run:
+              pool: CameraPool, rows: tuple[int, int] | None, track: Track) -> _Run:
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     filmed = config.video and not spec.unseen
-    sim = Simulator(spec.track, SimConfig(cameras=("center",), scenery=config.scenery,
+    sim = Simulator(track, SimConfig(cameras=("center",), scenery=config.scenery,
                                           renderer=config.renderer,
                                           render_rows=None if filmed else rows), pool=pool)
     try:
@@ -325,7 +357,8 @@ def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Pat
 
 
 def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
-                 config: EvalConfig, out: Path, bar, publish, *, overlap: bool = False) -> None:
+                 config: EvalConfig, out: Path, bar, publish, tracks: Mapping[str, Track], *,
+                 overlap: bool = False) -> None:
     """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
     cars on a second thread while the other half renders (:class:`Runner`). The group's cars on
     one track share one scene (:class:`CameraPool`)."""
@@ -337,7 +370,8 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
     rows = None if config.full_frame else getattr(policy, "visible_rows", None)
     try:
         for index, spec in group:
-            runs.append(_open_run(index, spec, names[index], config, out, pool, rows))
+            runs.append(_open_run(index, spec, names[index], config, out, pool, rows,
+                                  tracks[spec.track]))
         if config.video_saliency and any(run.video is not None for run in runs):
             from clonedrive.model.saliency import VisualBackProp
 

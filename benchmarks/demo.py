@@ -16,7 +16,7 @@ from pathlib import Path
 
 
 def timed_demo(out: Path, **options) -> dict:
-    from clonedrive.demo import DemoConfig, run_demo
+    from clonedrive.pipelines.demo import DemoConfig, run_demo
 
     start = time.perf_counter()
     summary = run_demo(DemoConfig(**options), out, progress=False)

@@ -95,7 +95,7 @@ def _base_run(sandbox: Path, model: Path, recipe_text: str) -> Path:
 def dagger_rerun(sandbox: Path, model: Path) -> dict:
     """dagger into a folder a run with --track lake --beta 0.5 left, with mountain and 0.8."""
     from clonedrive.config import config_to_dict
-    from clonedrive.dagger import DaggerConfig
+    from clonedrive.pipelines.dagger.config import DaggerConfig
 
     base = _base_run(sandbox, model, '[[recording]]\npath = "data"\n')
     out = sandbox / "dagger"

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.dagger import DaggerConfig, MixedDriver, format_table, record_plain
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
@@ -19,6 +18,10 @@ from clonedrive.drivers.network import NetworkPolicy
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner
 from clonedrive.model.train import TrainConfig, train
+from clonedrive.pipelines.dagger.config import DaggerConfig
+from clonedrive.pipelines.dagger.figures import format_table
+from clonedrive.pipelines.dagger.mixed_driver import MixedDriver
+from clonedrive.pipelines.dagger.stages import record_plain
 from clonedrive.sim.simulator import SimConfig, Simulator
 
 
@@ -117,6 +120,12 @@ def test_two_dagger_iterations_end_to_end_with_plain_cloning_at_each(tmp_path: P
     assert main([*arguments, "--plain-noise", "0"]) == 1
     assert "recorded for 60 labels, not the 90 DAgger collected by iteration 2" \
         in capsys.readouterr().err
+    # A stage record that cannot be read is an error naming it, not a stage to run again.
+    collected = out / "iter_01" / "data" / "collect.json"
+    collected.write_text("{ cut short", encoding="utf-8")
+    assert main([*arguments, "--plain-noise", "0"]) == 1
+    assert str(collected) in capsys.readouterr().err
+    assert collected.read_text(encoding="utf-8") == "{ cut short"
 
 
 def test_plain_cloning_records_as_many_labels_as_asked_past_one_lap(tmp_path: Path) -> None:
@@ -131,10 +140,10 @@ def test_plain_cloning_records_as_many_labels_as_asked_past_one_lap(tmp_path: Pa
 def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) -> None:
     """HG-DAgger: a model drives (here the expert stands in for it), a person takes over; the
     recording keeps only the person's rows, counts the takeover, and ``dagger`` aggregates it."""
-    from clonedrive.dagger import aggregate_recipe, check_human_recordings
     from clonedrive.data.recipe import Recipe, expand
     from clonedrive.manual.config import ManualConfig
     from clonedrive.manual.session import DrivingSession
+    from clonedrive.pipelines.dagger.stages import aggregate_recipe, check_human_recordings
     from clonedrive.web.pilots import ExpertPilot
 
     out = tmp_path / "takeovers"
@@ -173,8 +182,8 @@ def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) ->
 def test_collection_records_whole_frames_whatever_the_network_crops(tmp_path: Path) -> None:
     """Collected frames are training data: they are rendered whole even for a policy that
     looks at a strip (a recipe may crop differently, and augmentation shifts rows)."""
-    from clonedrive.dagger import collect
     from clonedrive.drivers.tiny_model import build_road_follower
+    from clonedrive.pipelines.dagger.stages import collect
 
     policy = NetworkPolicy(build_road_follower(), set_speed_mph=15.0)
     assert policy.visible_rows is not None  # it looks at a strip only

@@ -40,7 +40,7 @@ def test_the_full_demo_plans_valid_stages(recipe):
     __post_init__) is built here, so a config rule cannot break it unnoticed."""
     from dataclasses import replace
 
-    from clonedrive.demo import DemoConfig, demo_plan
+    from clonedrive.pipelines.demo import DemoConfig, demo_plan
 
     recordings, stages, groups = demo_plan(DemoConfig(recipe=recipe))
     train = stages[0]
@@ -59,7 +59,7 @@ def test_the_full_demo_plans_valid_stages(recipe):
 
 
 def test_demo_options_override_the_recipe():
-    from clonedrive.demo import DemoConfig, demo_plan
+    from clonedrive.pipelines.demo import DemoConfig, demo_plan
 
     _, (train, *_), groups = demo_plan(DemoConfig(epochs=2, unseen=3, model="seed",
                                                   video=False, seed=4))
@@ -71,7 +71,7 @@ def test_demo_options_override_the_recipe():
 def test_a_run_folder_of_another_recipe_is_refused_not_reused(tmp_path, capsys):
     """The demo reuses finished stages; a folder holding another recipe's stages must not pass
     for this recipe's."""
-    from clonedrive.demo import RECORDING_SPEC_FILE
+    from clonedrive.pipelines.demo import RECORDING_SPEC_FILE
 
     out = tmp_path / "demo"
     middle = out / "data" / "middle"
@@ -85,8 +85,8 @@ def test_a_run_folder_of_another_recipe_is_refused_not_reused(tmp_path, capsys):
 def test_a_model_of_another_recipe_is_refused(tmp_path, tiny_model_path):
     import shutil
 
-    from clonedrive.demo import DemoFolderError, _check_same_recipe
     from clonedrive.drivers.driving_settings import DrivingSettings, notes_for, write_notes
+    from clonedrive.pipelines.demo import DemoFolderError, _check_same_recipe
     from clonedrive.recipes.book import load_recipe_file
 
     train_dir = tmp_path / "train"
@@ -108,8 +108,8 @@ def test_a_recipe_recording_can_be_drawn_in_another_look(tmp_path):
     from the same recording's in the theme's look, and the folder's spec names the look (and
     a spec without one has no ``look`` key, as folders recorded before looks existed)."""
     from clonedrive.data.driving_log import read_driving_log
-    from clonedrive.demo import RECORDING_SPEC_FILE, _record_stage
     from clonedrive.images import read_rgb
+    from clonedrive.pipelines.demo import RECORDING_SPEC_FILE, _record_stage
     from clonedrive.recipes.book import RecordSpec
 
     plain = RecordSpec(name="plain", track="lake", style="center", laps=1, speed_mph=15,

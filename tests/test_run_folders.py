@@ -17,8 +17,9 @@ import pytest
 from support.cli_process import SRC, refused, run_clonedrive
 
 from clonedrive.config import config_to_dict, save_config, write_json_atomic
-from clonedrive.dagger import DaggerConfig, check_rerun
 from clonedrive.model.train import TrainConfig
+from clonedrive.pipelines.dagger.config import DaggerConfig
+from clonedrive.pipelines.dagger.loop import check_rerun
 
 #: Polling interval while waiting for a child process to reach a stage [s].
 POLL_S = 0.05

@@ -10,8 +10,8 @@ import pytest
 
 from clonedrive.cli import build_parser, main
 from clonedrive.commands.check import CheckConfig
-from clonedrive.demo import DEMO_MODELS, DemoConfig
 from clonedrive.evaluate.video import VideoConfig
+from clonedrive.pipelines.demo import DEMO_MODELS, DemoConfig
 from clonedrive.report.writeup import ReportConfig
 
 

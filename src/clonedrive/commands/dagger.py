@@ -34,7 +34,7 @@ EXAMPLES = (
 
 
 def add_arguments(parser) -> None:
-    from clonedrive.dagger import DaggerConfig
+    from clonedrive.pipelines.dagger.config import DaggerConfig
 
     d = DaggerConfig()
     parser.add_argument("base", help="training run folder (model.keras, config.json, "
@@ -88,8 +88,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from clonedrive.dagger import DaggerConfig, format_table, run_dagger
     from clonedrive.data.output_lock import claim_output
+    from clonedrive.pipelines.dagger.config import DaggerConfig
+    from clonedrive.pipelines.dagger.figures import format_table
+    from clonedrive.pipelines.dagger.loop import run_dagger
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 

@@ -26,7 +26,7 @@ EXAMPLES = (
 
 
 def add_arguments(parser) -> None:
-    from clonedrive.demo import DEFAULT_RUN_DIR, DEMO_MODELS, DemoConfig
+    from clonedrive.pipelines.demo import DEFAULT_RUN_DIR, DEMO_MODELS, DemoConfig
     from clonedrive.recipes.book import recipe_choices_text
 
     defaults = DemoConfig()
@@ -55,7 +55,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from clonedrive.commands.output_claim import claim
-    from clonedrive.demo import DemoConfig, run_demo
+    from clonedrive.pipelines.demo import DemoConfig, run_demo
 
     try:
         config = DemoConfig(recipe=args.recipe, quick=args.quick, epochs=args.epochs,
@@ -70,7 +70,7 @@ def run(args) -> int:
     lock = claim("demo", args.out)
     if lock is None:
         return 1
-    from clonedrive.demo import DemoFolderError
+    from clonedrive.pipelines.demo import DemoFolderError
 
     with lock:
         try:

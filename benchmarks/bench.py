@@ -20,12 +20,12 @@ from pathlib import Path
 
 
 def main() -> int:
+    from clonedrive.base.workers import default_workers, run_tasks
     from clonedrive.bench import DEFAULT_SUITE
     from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.run import BenchConfig, plan_tasks
     from clonedrive.bench.suite import load_suite
     from clonedrive.model.architectures import build_model
-    from clonedrive.workers import default_workers, run_tasks
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workers", type=int, default=default_workers())

@@ -108,9 +108,9 @@ def crop_speedup(crop_top: int) -> tuple[float, list, float, float, float]:
     import numpy as np
     from evaluate import render_only_steps_per_s
 
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
     from clonedrive.drivers.network import NetworkPolicy
     from clonedrive.model.architectures import build_model
-    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     policy = NetworkPolicy(build_model("fast", crop_top_px=crop_top), set_speed_mph=20.0)
     policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))  # warm up

@@ -19,7 +19,7 @@ import os
 import statistics
 import time
 
-from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 PAIRS = 3

@@ -83,10 +83,10 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
     alone (render, predict, control, physics, rules), without scene builds or map plots.
     ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each.
     ``rows``: render only these rows (the crop), as ``SimConfig.render_rows``."""
+    from clonedrive.base.keras_backend import compute_threads
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
-    from clonedrive.keras_backend import compute_threads
     from clonedrive.sim.camera_pool import CameraPool
     from clonedrive.sim.simulator import SimConfig, Simulator
 
@@ -147,7 +147,7 @@ def _render_only_task(steps: int) -> int:
 def render_only_workers_steps_per_s(steps: int, workers: int) -> float:
     """The reference on as many cores: ``workers`` processes rendering the center camera at
     once, ``steps`` in all (process start, imports and scene builds included)."""
-    from clonedrive.workers import run_tasks
+    from clonedrive.base.workers import run_tasks
 
     share = [steps // workers + (1 if i < steps % workers else 0) for i in range(workers)]
     start = time.perf_counter()
@@ -158,9 +158,9 @@ def render_only_workers_steps_per_s(steps: int, workers: int) -> float:
 def render_only_steps_per_s(steps: int, track_name: str = "lake", *,
                             steady: bool = False) -> float:
     """The reference: the center camera alone, built and rendered along the centreline."""
+    from clonedrive.base.udacity_spec import CONTROL_HZ
     from clonedrive.sim.cameras import CameraRig
     from clonedrive.sim.scene import Scene
-    from clonedrive.udacity_spec import CONTROL_HZ
     from clonedrive.world.catalog import load_track
     from clonedrive.world.vehicle import MPH_TO_MPS
 
@@ -186,10 +186,10 @@ def render_beside_network(policy, frames: int = 400) -> tuple[float, float]:
 
     import numpy as np
 
-    from clonedrive.keras_backend import compute_threads
+    from clonedrive.base.keras_backend import compute_threads
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
     from clonedrive.sim.cameras import CameraRig
     from clonedrive.sim.scene import Scene
-    from clonedrive.udacity_spec import IMAGE_SHAPE
     from clonedrive.world.catalog import load_track
 
     track = load_track("lake")
@@ -257,11 +257,11 @@ def server_round_trip_ms() -> tuple[float, float]:
     """The drive server's round trip with the ``seed`` model: (median, p99) [ms], printed."""
     from server_latency import round_trips, sample_jpeg
 
+    from clonedrive.base.udacity_spec import SET_SPEED_MPH
     from clonedrive.drivers.network import NetworkPolicy
     from clonedrive.model.architectures import build_model
     from clonedrive.udacity import protocol
     from clonedrive.udacity.server import DriveServer
-    from clonedrive.udacity_spec import SET_SPEED_MPH
 
     seed_policy = NetworkPolicy(build_model("seed"), set_speed_mph=SET_SPEED_MPH)
     server = DriveServer(seed_policy, port=0, status_interval_s=0)
@@ -282,10 +282,10 @@ def server_round_trip_ms() -> tuple[float, float]:
 def main() -> None:
     import numpy as np
 
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
+    from clonedrive.base.workers import default_workers
     from clonedrive.drivers.network import NetworkPolicy, load_model
     from clonedrive.model.architectures import build_model
-    from clonedrive.udacity_spec import IMAGE_SHAPE
-    from clonedrive.workers import default_workers
 
     model = load_model(sys.argv[1]) if len(sys.argv) > 1 else build_model("fast")
     policy = NetworkPolicy(model, set_speed_mph=20.0)

@@ -141,7 +141,7 @@ def full_disk(sandbox: Path, tiny: Path) -> dict:
 def bounds(sandbox: Path) -> dict:
     """Every probe above; returns the figures."""
     sys.path.insert(0, str(ROOT / "src"))
-    from clonedrive.keras_backend import choose_backend
+    from clonedrive.base.keras_backend import choose_backend
 
     choose_backend()
     from clonedrive.drivers.tiny_model import build_tiny_model

@@ -81,7 +81,7 @@ def interrupted_evaluate(sandbox: Path, model: Path) -> dict:
 def _base_run(sandbox: Path, model: Path, recipe_text: str) -> Path:
     """A training run folder as dagger reads it: model, config and recipe."""
     sys.path.insert(0, str(ROOT / "src"))
-    from clonedrive.config import save_config
+    from clonedrive.base.config import save_config
     from clonedrive.model.train import TrainConfig
 
     base = sandbox / f"base_{len(list(sandbox.glob('base_*')))}"
@@ -94,7 +94,7 @@ def _base_run(sandbox: Path, model: Path, recipe_text: str) -> Path:
 
 def dagger_rerun(sandbox: Path, model: Path) -> dict:
     """dagger into a folder a run with --track lake --beta 0.5 left, with mountain and 0.8."""
-    from clonedrive.config import config_to_dict
+    from clonedrive.base.config import config_to_dict
     from clonedrive.pipelines.dagger.config import DaggerConfig
 
     base = _base_run(sandbox, model, '[[recording]]\npath = "data"\n')

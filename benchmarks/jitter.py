@@ -69,10 +69,10 @@ def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -
 
 def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dict:
     """The expert drives one lap (or ``max_seconds``); the model predicts on each frame."""
+    from clonedrive.base.udacity_spec import CONTROL_HZ
     from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
     from clonedrive.episode.trace import smoothness
     from clonedrive.sim.simulator import SimConfig, Simulator
-    from clonedrive.udacity_spec import CONTROL_HZ
 
     sim = Simulator(track, SimConfig(cameras=("center",)))
     try:

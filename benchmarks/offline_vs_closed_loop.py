@@ -33,8 +33,8 @@ SECONDS = 60.0
 
 
 def held_out(folder: Path) -> list[Path]:
+    from clonedrive.base.paths import safe_stem
     from clonedrive.data.recorder import RecordConfig, record
-    from clonedrive.paths import safe_stem
 
     folders = []
     for index, track in enumerate(TRACKS):

@@ -9,8 +9,8 @@ import json
 import math
 import time
 
+from clonedrive.base.udacity_spec import MAX_WHEEL_ANGLE_DEG
 from clonedrive.sim.simulator import Controls, SimConfig, Simulator
-from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 
 def drive(track: str, sim_seconds: float) -> float:

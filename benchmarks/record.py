@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.base.udacity_spec import CONTROL_HZ
 
 TARGET_SAMPLES_PER_S = 150.0
 
@@ -56,9 +56,9 @@ def time_jpeg(folder: Path, repeats: int) -> float:
     recorder's way: BGR view, cv2.imwrite to a temp name, rename."""
     import cv2
 
+    from clonedrive.base.udacity_spec import JPEG_QUALITY
     from clonedrive.data.recorder import _write_jpeg
     from clonedrive.sim.simulator import SimConfig, Simulator
-    from clonedrive.udacity_spec import JPEG_QUALITY
 
     with Simulator("lake", SimConfig(cameras=("center",))) as sim:
         obs, _ = sim.reset(seed=0)

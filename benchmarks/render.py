@@ -45,7 +45,7 @@ import time
 
 import numpy as np
 
-from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import IMAGE_SHAPE, JPEG_QUALITY, SET_SPEED_MPH
 from clonedrive.drivers.network import NetworkPolicy, load_model
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
-from clonedrive.udacity_spec import IMAGE_SHAPE, JPEG_QUALITY, SET_SPEED_MPH
 
 FIXTURE_IMAGES = Path(__file__).parents[1] / "tests" / "fixtures" / "udacity" / "stationary" / "IMG"
 
@@ -99,7 +99,7 @@ async def round_trips(ports: list[int], frame: str, warmup: int,
 
 
 def time_parts(model, jpeg: bytes, repeats: int, onnx_model=None) -> dict[str, list[float]]:
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 
@@ -143,7 +143,7 @@ def main() -> None:
     parser.add_argument("--architecture", default="seed")
     args = parser.parse_args()
 
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 

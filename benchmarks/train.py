@@ -54,7 +54,7 @@ class _FixedBatches:
     """A keras PyDataset of the same batch repeated: measures the model, not the pipeline."""
 
     def __new__(cls, images, steering, count):
-        from clonedrive.keras_backend import import_keras
+        from clonedrive.base.keras_backend import import_keras
 
         keras = import_keras()
 
@@ -73,7 +73,7 @@ class _FixedBatches:
 
 def keras_trainer(images, steering, batches: int, data_format: str = "channels_first"):
     """A function that trains ``seed`` with model.fit on ``batches`` batches; images/s."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 
@@ -195,7 +195,7 @@ def pipeline_figures(samples, batch_size: int, repeats: int = 3) -> dict:
 
 def fit_pipeline_images_per_s(samples, cache, batch_size: int, batches: int, workers: int
                               ) -> float:
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 

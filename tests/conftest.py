@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from clonedrive.keras_backend import choose_backend
+from clonedrive.base.keras_backend import choose_backend
 
 choose_backend()
 

@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clonedrive.cli import main
-from clonedrive.images import (
+from clonedrive.base.images import (
     IMAGE_CORRUPT,
     IMAGE_SIZE,
     MAX_IMAGE_PIXELS,
@@ -21,6 +20,7 @@ from clonedrive.images import (
     decode_rgb,
     read_rgb,
 )
+from clonedrive.cli import main
 
 
 def png_header(width: int, height: int) -> bytes:

@@ -4,7 +4,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from clonedrive.config import (
+from clonedrive.base.config import (
     atomic_path,
     config_from_dict,
     write_bytes_atomic,

@@ -191,7 +191,7 @@ def test_collection_records_whole_frames_whatever_the_network_crops(tmp_path: Pa
     collect(policy, config, beta=0.0, out=tmp_path, seed=0)
     rows = read_driving_log(tmp_path / "lake").rows
     assert rows
-    from clonedrive.images import read_rgb
+    from clonedrive.base.images import read_rgb
 
     for camera in ("center", "left", "right"):
         frame = read_rgb(getattr(rows[-1], camera))

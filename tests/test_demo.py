@@ -107,8 +107,8 @@ def test_a_recipe_recording_can_be_drawn_in_another_look(tmp_path):
     """``look = "udacity"`` in a recipe's recording reaches the recorder: the frames differ
     from the same recording's in the theme's look, and the folder's spec names the look (and
     a spec without one has no ``look`` key, as folders recorded before looks existed)."""
+    from clonedrive.base.images import read_rgb
     from clonedrive.data.driving_log import read_driving_log
-    from clonedrive.images import read_rgb
     from clonedrive.pipelines.demo import RECORDING_SPEC_FILE, _record_stage
     from clonedrive.recipes.book import RecordSpec
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from clonedrive.images import ImageDecodeError, decode_rgb, read_rgb
+from clonedrive.base.images import ImageDecodeError, decode_rgb, read_rgb
 
 
 def red_left_blue_right(height: int = 16, width: int = 32) -> np.ndarray:

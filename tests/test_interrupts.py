@@ -10,13 +10,13 @@ import sys
 
 import pytest
 
-from clonedrive.interrupts import Terminated, interruptible, raise_if_lost
+from clonedrive.base.interrupts import Terminated, interruptible, raise_if_lost
 
 WAIT_S = 180.0  # the longest the test waits for the child (not a timing)
 
 SWALLOWING_DESTRUCTOR = """
 import signal, sys, time
-from clonedrive.interrupts import Terminated, interruptible
+from clonedrive.base.interrupts import Terminated, interruptible
 
 class SignalledWhileCollected:
     def __del__(self):

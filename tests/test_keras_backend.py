@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from clonedrive import keras_backend
+from clonedrive.base import keras_backend
 
 
 def write_keras_json(folder: Path, backend: str) -> None:
@@ -43,7 +43,7 @@ def test_second_run_after_keras_wrote_its_json(tmp_path) -> None:
     env = {key: value for key, value in os.environ.items()
            if key != "KERAS_BACKEND"}
     env["KERAS_HOME"] = str(tmp_path / "home")
-    code = ("from clonedrive.keras_backend import import_keras; "
+    code = ("from clonedrive.base.keras_backend import import_keras; "
             "print(import_keras().backend.backend())")
     runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                            text=True, timeout=120) for _ in range(2)]

@@ -1,6 +1,6 @@
 import pytest
 
-from clonedrive.paths import MAX_STEM_CHARS, inside, safe_stem
+from clonedrive.base.paths import MAX_STEM_CHARS, inside, safe_stem
 
 HOSTILE = ["..", "../../../tmp/x", "/etc/passwd", "C:\\Windows\\x", "a/b", "a\x00b", "x" * 400,
            "", ".hidden", "con:aux"]

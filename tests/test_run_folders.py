@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from support.cli_process import SRC, refused, run_clonedrive
 
-from clonedrive.config import config_to_dict, save_config, write_json_atomic
+from clonedrive.base.config import config_to_dict, save_config, write_json_atomic
 from clonedrive.model.train import TrainConfig
 from clonedrive.pipelines.dagger.config import DaggerConfig
 from clonedrive.pipelines.dagger.loop import check_rerun

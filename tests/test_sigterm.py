@@ -93,7 +93,7 @@ def test_workers_stop_when_their_parent_is_killed(tmp_path: Path) -> None:
     """SIGKILL cannot be handled: each worker notices its parent is gone and stops."""
     script = (
         "import time\n"
-        "from clonedrive.workers import run_tasks\n"
+        "from clonedrive.base.workers import run_tasks\n"
         "run_tasks(time.sleep, [600, 600], workers=2)\n"
     )
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))

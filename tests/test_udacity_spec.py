@@ -1,6 +1,6 @@
 """The Udacity numbers are defined once: every stage's default is the spec's value."""
 
-from clonedrive import udacity_spec as spec
+from clonedrive.base import udacity_spec as spec
 from clonedrive.cli import build_parser
 from clonedrive.data.recipe import DEFAULT_CORRECTION
 from clonedrive.data.recorder import RecordConfig

@@ -14,7 +14,7 @@ import os
 import signal
 import sys
 
-from clonedrive.interrupts import Terminated, interruptible
+from clonedrive.base.interrupts import Terminated, interruptible
 
 # (verb, module under clonedrive.commands) in data-flow order.
 VERBS: list[tuple[str, str]] = [
@@ -136,7 +136,7 @@ def _run_verb(args: argparse.Namespace) -> int:
         return 1
     except OSError as error:
         # A full disk, a read-only folder, a missing permission: one line naming the path.
-        from clonedrive.paths import FILE_SYSTEM_ERRNOS, describe_os_error
+        from clonedrive.base.paths import FILE_SYSTEM_ERRNOS, describe_os_error
 
         if error.errno not in FILE_SYSTEM_ERRNOS:
             raise

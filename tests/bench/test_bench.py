@@ -6,11 +6,11 @@ import shutil
 
 import pytest
 
+from clonedrive.base.workers import run_tasks
 from clonedrive.bench.driving import drive_batch
 from clonedrive.bench.run import BenchConfig, bench, plan_tasks
 from clonedrive.bench.scores import correlation, method_scores, run_scores, split_scores
 from clonedrive.bench.suite import load_suite
-from clonedrive.workers import run_tasks
 
 SUITE = """
 id = "tiny"

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from clonedrive.base.udacity_spec import IMAGE_SHAPE, MAX_WHEEL_ANGLE_DEG
 from clonedrive.cli import main
-from clonedrive.udacity_spec import IMAGE_SHAPE, MAX_WHEEL_ANGLE_DEG
 from clonedrive.world.vehicle import VehicleParams
 
 RADIUS_M = 30.0

@@ -7,9 +7,9 @@ import json
 
 import pytest
 
+from clonedrive.base.images import read_rgb
 from clonedrive.cli import main
 from clonedrive.commands.tracks import TracksConfig
-from clonedrive.images import read_rgb
 from clonedrive.world.catalog import builtin_track_names, load_track
 
 

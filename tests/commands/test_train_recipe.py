@@ -36,7 +36,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
 
 def test_model_h5_has_one_output_for_udacitys_drive_py(best_run: Path):
     """drive.py calls ``float(model.predict(image[None], batch_size=1))``: one output."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
     model = keras.saving.load_model(best_run / "model.h5", compile=False)

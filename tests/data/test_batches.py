@@ -10,10 +10,10 @@ import cv2
 import numpy as np
 import pytest
 
+from clonedrive.base.images import ImageDecodeError
 from clonedrive.data.augment import AugmentConfig
 from clonedrive.data.batches import DrivingBatches, ImageCache, read_rgb
 from clonedrive.data.recipe import default_recipe_for, expand, parse_recipe
-from clonedrive.images import ImageDecodeError
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 LAKE = FIXTURES / "lake_posix_mixed_columns"

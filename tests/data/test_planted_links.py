@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from support.cli_process import refused, run_clonedrive
 
-from clonedrive.config import atomic_path, write_json_atomic, write_text_atomic
-from clonedrive.output_files import RefusedOutputError, open_output, probe_writable
+from clonedrive.base.config import atomic_path, write_json_atomic, write_text_atomic
+from clonedrive.base.output_files import RefusedOutputError, open_output, probe_writable
 
 RECORD = ("record", "--track", "lake", "--seconds", "0.4", "--no-scenery",
           "--start-time", "2020-01-01T00:00:00")

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from clonedrive.base.images import read_rgb
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
-from clonedrive.images import read_rgb
 from clonedrive.sim.conditions import FAMILIES, TRAINING_LOOKS
 
 

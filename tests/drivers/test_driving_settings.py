@@ -8,6 +8,7 @@ import zipfile
 import numpy as np
 import pytest
 
+from clonedrive.base.udacity_spec import IMAGE_SHAPE
 from clonedrive.drivers.driving_settings import (
     KERAS_MEMBER,
     MAX_NOTES_BYTES,
@@ -18,7 +19,6 @@ from clonedrive.drivers.driving_settings import (
     write_notes,
 )
 from clonedrive.drivers.network import load_policy
-from clonedrive.udacity_spec import IMAGE_SHAPE
 
 CALM = DrivingSettings(steering_hold=0.02, mirror_average=True)
 

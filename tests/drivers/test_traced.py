@@ -157,7 +157,7 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
     assert sorted(portable.traces) == [2, 4, 6]
     assert portable.output_names == tuple(model.output_names)
     frames = real_frames[:3]
-    from clonedrive.keras_backend import compute_threads
+    from clonedrive.base.keras_backend import compute_threads
 
     # One compute thread on both sides, as evaluate's and bench's workers run: the last bits of
     # a convolution depend on how many threads share it (another test may have changed this

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from clonedrive.base.images import read_rgb
 from clonedrive.cli import main
 from clonedrive.evaluate.crosscheck import CrosscheckConfig, correlation, crosscheck, smooth
-from clonedrive.images import read_rgb
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "udacity"
 LAKE = FIXTURES / "lake_posix_mixed_columns"  # 70 rows in three time segments

@@ -8,9 +8,9 @@ import json
 
 import numpy as np
 
+from clonedrive.base.images import read_rgb
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
-from clonedrive.images import read_rgb
 from clonedrive.manual.config import ManualConfig
 from clonedrive.manual.session import DrivingSession
 from clonedrive.manual.window import WINDOW_SIZE, run_window

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from clonedrive.base.udacity_spec import IMAGE_SHAPE
 from clonedrive.cli import main
 from clonedrive.model.architectures import CROP_BOTTOM_PX, CROP_TOP_PX, build_model
 from clonedrive.model.saliency import VisualBackProp, _spread, overlay
-from clonedrive.udacity_spec import IMAGE_SHAPE
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 

@@ -12,8 +12,8 @@ import keras
 import numpy as np
 import pytest
 
+from clonedrive.base.config import load_config
 from clonedrive.cli import main
-from clonedrive.config import load_config
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.model.train import TrainConfig, _run_recorder_class, train
 

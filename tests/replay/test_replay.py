@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from clonedrive.base.images import read_rgb
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
-from clonedrive.images import read_rgb
 from clonedrive.replay.episode import (
     ReplayConfig,
     ReplayError,

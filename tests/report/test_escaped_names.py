@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from support.cli_process import run_clonedrive
 
-from clonedrive.config import save_config
+from clonedrive.base.config import save_config
 from clonedrive.data.recipe import default_recipe_for, load_recipe, recipe_to_toml
 from clonedrive.model.train import TrainConfig
 

@@ -61,7 +61,7 @@ def test_each_condition_changes_the_frame_and_none_changes_the_physics():
     clear = render(None)
     neutral = render(Conditions()).images["center"]
     # (a scene's edge pixels can differ with the buffers made earlier in the process: see
-    # clonedrive.workers, which runs each batch of episodes in a fresh process)
+    # clonedrive.base.workers, which runs each batch of episodes in a fresh process)
     assert (neutral != clear.images["center"]).any(axis=2).mean() < 0.002
     frames = {name: render(FAMILIES[name].sample(1)) for name in
               ("dusk", "fog", "worn-road", "sensor")}

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clonedrive.images import read_rgb
+from clonedrive.base.images import read_rgb
 from clonedrive.sim.cameras import CameraRig
 from clonedrive.sim.conditions import Conditions
 from clonedrive.sim.scene import Scene

@@ -29,7 +29,7 @@ class CompareError(ValueError):
 
 def load_method(spec: str) -> tuple[str, dict, list[dict]]:
     """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of every model of the method)."""
-    from clonedrive.config import read_json
+    from clonedrive.base.config import read_json
 
     path_text, _, label = spec.rpartition(":") if not Path(spec).exists() else (spec, "", "")
     if not path_text:

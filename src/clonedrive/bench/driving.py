@@ -1,6 +1,6 @@
 """What a bench worker does: drive one batch of a suite's episodes in lock-step.
 
-:func:`drive_batch` runs in a worker process of :mod:`clonedrive.workers`. A **model batch**
+:func:`drive_batch` runs in a worker process of :mod:`clonedrive.base.workers`. A **model batch**
 loads the model once and drives its episodes through the episode runner
 (:mod:`clonedrive.episode`) in lock-step, their frames batched through the network; each car
 has its episode's conditions (sim/conditions.py), its own PI speed controller and, under a
@@ -109,9 +109,9 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     """``portable``: the model's checked traces (NetworkPolicy.portable), run by PyTorch alone
     instead of loading the model file with Keras; the same steering to the last bit. Frames
     are drawn by ``renderer``; only the rows the model's crop keeps unless ``full_frame``."""
+    from clonedrive.base.keras_backend import compute_threads
     from clonedrive.drivers.network import load_policy
     from clonedrive.episode.drivers import NetworkDriver
-    from clonedrive.keras_backend import compute_threads
 
     policy = load_policy(model_path, trust=trust, runtime=runtime, portable=portable,
                          **policy_options)

@@ -7,7 +7,7 @@ import base64
 import html
 from pathlib import Path
 
-from clonedrive.config import atomic_path, write_text_atomic
+from clonedrive.base.config import atomic_path, write_text_atomic
 
 
 def _pm(figure: dict, digits: int = 1, scale: float = 1.0) -> str:

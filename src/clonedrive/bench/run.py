@@ -2,7 +2,7 @@
 
 :func:`bench` cuts the suite's episodes into batches (``batch`` episodes of one model each,
 driven in lock-step by one worker), adds the expert's reference laps (one per track and speed
-cap), runs them all on the worker pool (:mod:`clonedrive.workers`), scores every run against
+cap), runs them all on the worker pool (:mod:`clonedrive.base.workers`), scores every run against
 its reference (:mod:`clonedrive.bench.scores`) and writes, under ``out``:
 
 - ``bench.json``: the suite (id, splits, conditions), the settings, every run with its scores,
@@ -21,6 +21,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from clonedrive.base.config import config_to_dict, write_json_atomic
+from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.scores import (
     correlation,
@@ -30,9 +32,7 @@ from clonedrive.bench.scores import (
     split_scores,
 )
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
-from clonedrive.config import config_to_dict, write_json_atomic
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
-from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 
 #: bench.json's format version.
 BENCH_FORMAT = 1
@@ -153,11 +153,11 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
 
 def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) -> dict:
     """Run the benchmark and write its files; returns bench.json's content."""
+    from clonedrive.base.progress import progress_bar
+    from clonedrive.base.workers import default_workers, run_tasks
     from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.leaderboard import write_leaderboard
-    from clonedrive.progress import progress_bar
     from clonedrive.sim.engine import renderer_info
-    from clonedrive.workers import default_workers, run_tasks
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -304,8 +304,8 @@ def offline_mse(model_path: str, rows: list, *, trust: bool = False,
     """Mean squared error of the model's steering on the center images of ``rows``."""
     import numpy as np
 
+    from clonedrive.base.images import read_rgb
     from clonedrive.drivers.network import load_policy
-    from clonedrive.images import read_rgb
 
     policy = load_policy(model_path, trust=trust, runtime=runtime)
     errors = []

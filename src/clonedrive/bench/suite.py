@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from clonedrive.config import parse_toml
+from clonedrive.base.config import parse_toml
 from clonedrive.sim.conditions import ConditionFamily, Conditions
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import TrackError

@@ -65,11 +65,11 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     if args.models[0] == "compare":
         return _compare(args)
+    from clonedrive.base.paths import check_output_folder
     from clonedrive.bench.leaderboard import tables
     from clonedrive.bench.run import BenchConfig, bench
     from clonedrive.bench.suite import SuiteError, load_suite
     from clonedrive.data.output_lock import claim_output
-    from clonedrive.paths import check_output_folder
 
     problem = renderer_error(args, "bench")
     if problem:

@@ -44,9 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from clonedrive.base.paths import check_output_folder, safe_stem
     from clonedrive.data.driving_log import DrivingLogError
     from clonedrive.evaluate.crosscheck import CrosscheckConfig, crosscheck, format_summary
-    from clonedrive.paths import check_output_folder, safe_stem
 
     try:
         config = CrosscheckConfig(smoothing_frames=args.smooth, max_rows=args.max_rows)

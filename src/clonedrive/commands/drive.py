@@ -8,6 +8,7 @@ import logging
 import socket
 import sys
 
+from clonedrive.base.udacity_spec import SET_SPEED_MPH
 from clonedrive.commands.counts import MAX_CONNECTIONS, count
 from clonedrive.commands.model_options import (
     add_model_arguments,
@@ -15,7 +16,6 @@ from clonedrive.commands.model_options import (
     load_policy_from_args,
 )
 from clonedrive.udacity.server_config import DriveServerConfig
-from clonedrive.udacity_spec import SET_SPEED_MPH
 from clonedrive.world.vehicle import check_set_speed
 
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"

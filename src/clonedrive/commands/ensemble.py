@@ -54,10 +54,10 @@ def run(args: argparse.Namespace) -> int:
 def _combine(args: argparse.Namespace, out) -> int:
     import numpy as np
 
-    from clonedrive.config import atomic_path
+    from clonedrive.base.config import atomic_path
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
     from clonedrive.drivers.driving_settings import copy_notes
     from clonedrive.drivers.network import has_speed_head, load_model
-    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     try:
         members = [load_model(path, trust=args.trust_model, runtime="keras")
@@ -86,7 +86,7 @@ def _combine(args: argparse.Namespace, out) -> int:
             ensemble.save(temporary)
             copy_notes(args.models[0], temporary)  # driven as its first member says
     except OSError as error:
-        from clonedrive.paths import describe_os_error, with_filename
+        from clonedrive.base.paths import describe_os_error, with_filename
 
         print(f"clonedrive ensemble: cannot write {out}: "
               f"{describe_os_error(with_filename(error, out))}", file=sys.stderr)

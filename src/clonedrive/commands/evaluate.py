@@ -75,10 +75,10 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from pathlib import Path
 
+    from clonedrive.base.paths import prepare_output_folder
     from clonedrive.commands.output_claim import claim
     from clonedrive.evaluate.config import EvalConfig
     from clonedrive.evaluate.rollout import evaluate, format_table
-    from clonedrive.paths import prepare_output_folder
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 

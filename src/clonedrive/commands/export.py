@@ -37,8 +37,8 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
     from clonedrive.drivers.network import load_model
-    from clonedrive.udacity_spec import IMAGE_SHAPE
 
     model_path = Path(args.model)
     out = Path(args.out) if args.out else model_path.with_suffix(".onnx")
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"clonedrive export: {error}", file=sys.stderr)
         return 1
     except OSError as error:
-        from clonedrive.paths import describe_os_error, with_filename
+        from clonedrive.base.paths import describe_os_error, with_filename
 
         print(f"clonedrive export: cannot write {out}: "
               f"{describe_os_error(with_filename(error, out))}", file=sys.stderr)

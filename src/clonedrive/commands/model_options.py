@@ -103,7 +103,7 @@ def check_finite_on_probe(policy, model_path: str) -> None:
     uniform grey frame; the probe is not counted among the policy's NaN predictions."""
     import numpy as np
 
-    from clonedrive.udacity_spec import IMAGE_SHAPE
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
 
     frame = np.full((1, *IMAGE_SHAPE), PROBE_GREY, dtype=np.uint8)
     counted = policy.nan_predictions

@@ -59,8 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from clonedrive.base.paths import check_output_folder, safe_stem
     from clonedrive.commands.output_claim import claim
-    from clonedrive.paths import check_output_folder, safe_stem
     from clonedrive.replay.episode import ReplayConfig
     from clonedrive.replay.output import format_summary
 

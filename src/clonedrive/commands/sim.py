@@ -7,9 +7,9 @@ import json
 import sys
 from dataclasses import asdict
 
+from clonedrive.base.udacity_spec import PORT
 from clonedrive.commands.counts import MAX_STEPS, count
 from clonedrive.commands.record import add_log_format_arguments
-from clonedrive.udacity_spec import PORT
 from clonedrive.world.names import TRACK_NAMES_HELP
 
 HELP = "drive a track yourself in a window (keyboard, mouse or gamepad) and record it"

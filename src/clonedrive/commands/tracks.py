@@ -89,7 +89,7 @@ def describe_tracks(config: TracksConfig) -> list[dict]:
     (checked before any work)."""
     from pathlib import Path
 
-    from clonedrive.paths import inside, prepare_output_folder, safe_stem
+    from clonedrive.base.paths import inside, prepare_output_folder, safe_stem
     from clonedrive.world.catalog import builtin_track_names, load_track
 
     names = config.tracks or builtin_track_names()

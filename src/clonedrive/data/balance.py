@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import atomic_path
+from clonedrive.base.config import atomic_path
 
 DEFAULT_BINS = 20
 

@@ -22,14 +22,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from clonedrive.base.images import ImageDecodeError
+from clonedrive.base.images import read_rgb as read_image_file
+from clonedrive.base.keras_backend import import_keras
+from clonedrive.base.paths import with_filename
+from clonedrive.base.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
-from clonedrive.images import ImageDecodeError
-from clonedrive.images import read_rgb as read_image_file
-from clonedrive.keras_backend import import_keras
-from clonedrive.paths import with_filename
-from clonedrive.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 
 keras = import_keras()
 
@@ -134,7 +134,7 @@ class ImageCache:
         todo = [int(index) for index in np.flatnonzero(~self.filled) if index not in self.failed]
         bar = None
         if progress and todo:
-            from clonedrive.progress import progress_bar
+            from clonedrive.base.progress import progress_bar
 
             bar = progress_bar(total=len(todo), desc="decoding images", unit="img")
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:

@@ -30,10 +30,10 @@ from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from pathlib import Path
 
-from clonedrive.images import ImageDecodeError, decode_rgb
-from clonedrive.output_files import open_output_fd
-from clonedrive.paths import with_filename
-from clonedrive.udacity_spec import IMAGE_SHAPE
+from clonedrive.base.images import ImageDecodeError, decode_rgb
+from clonedrive.base.output_files import open_output_fd
+from clonedrive.base.paths import with_filename
+from clonedrive.base.udacity_spec import IMAGE_SHAPE
 
 CAMERAS = ("center", "left", "right")
 CSV_NAME = "driving_log.csv"
@@ -465,7 +465,7 @@ def _verify_images(
 
     iterable = rows
     if progress:
-        from clonedrive.progress import progress_bar
+        from clonedrive.base.progress import progress_bar
 
         iterable = progress_bar(rows, desc="checking images", unit="row", leave=False)
     good: list[LogRow] = []

@@ -43,10 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import parse_toml
+from clonedrive.base.config import parse_toml
+from clonedrive.base.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
 from clonedrive.data.speed_labels import label_or_recorded
-from clonedrive.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 
 CAMERA_MODES = ("center", "all")
 DEFAULT_CORRECTION = STEERING_CORRECTION

@@ -60,7 +60,10 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import JsonFileError, config_to_dict, read_json, write_json_atomic
+from clonedrive.base.config import JsonFileError, config_to_dict, read_json, write_json_atomic
+from clonedrive.base.output_files import clear_temporary, open_output, refuse_link
+from clonedrive.base.paths import check_output_folder, describe_os_error, with_filename
+from clonedrive.base.udacity_spec import JPEG_QUALITY
 from clonedrive.data.driving_log import (
     CAMERAS,
     CSV_NAME,
@@ -75,10 +78,7 @@ from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.speed_labels import LABELS_NAME, SpeedLabelWriter
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.episode.rules import EpisodeRules, Stop
-from clonedrive.output_files import clear_temporary, open_output, refuse_link
-from clonedrive.paths import check_output_folder, describe_os_error, with_filename
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
-from clonedrive.udacity_spec import JPEG_QUALITY
 from clonedrive.world.vehicle import check_set_speed
 
 CONFIG_NAME = "config.json"
@@ -459,7 +459,7 @@ def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, d
     recorder left, and choose the first image's time (``start_time``, ISO, or now) so that it
     follows the last image already logged there. Returns (rows already in the log, start).
     A symbolic link at the name of a file the recording reads and writes is refused
-    (:class:`~clonedrive.output_files.RefusedOutputError`) before anything is written."""
+    (:class:`~clonedrive.base.output_files.RefusedOutputError`) before anything is written."""
     for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME, IMAGE_FOLDER):
         refuse_link(out / name)
     existing_rows, last_time = _existing_log(out)
@@ -536,7 +536,7 @@ def write_session_config(out: Path, config, track, version: str, session: dict) 
 def _progress_bar(laps: int, enabled: bool):
     if not enabled:
         return None
-    from clonedrive.progress import progress_bar
+    from clonedrive.base.progress import progress_bar
 
     return progress_bar(
         total=laps, desc="recording", unit="lap",

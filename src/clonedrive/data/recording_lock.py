@@ -21,8 +21,8 @@ import socket
 from datetime import datetime
 from pathlib import Path
 
-from clonedrive.output_files import open_output_fd
-from clonedrive.paths import with_filename
+from clonedrive.base.output_files import open_output_fd
+from clonedrive.base.paths import with_filename
 
 try:
     import fcntl

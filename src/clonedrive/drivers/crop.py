@@ -9,7 +9,7 @@ tells the renderer what it needs.
 
 from __future__ import annotations
 
-from clonedrive.udacity_spec import IMAGE_SHAPE
+from clonedrive.base.udacity_spec import IMAGE_SHAPE
 
 #: Layers that may come before the crop: they act on each pixel alone, so cropping first or
 #: after gives the same values.

@@ -79,7 +79,7 @@ class DrivingSettings:
     @classmethod
     def from_dict(cls, values: dict, source: str) -> DrivingSettings:
         """Settings from a table; unknown keys and bad values are errors naming ``source``."""
-        from clonedrive.config import config_from_dict
+        from clonedrive.base.config import config_from_dict
 
         return config_from_dict(cls, values, source=source)
 

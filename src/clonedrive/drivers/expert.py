@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.world.vehicle import (
     AIR_DENSITY_KGPM3,
     GRAVITY_MPS2,

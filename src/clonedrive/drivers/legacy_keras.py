@@ -251,7 +251,7 @@ def rebuilt_network(path: Path, config: dict, *,
                     normalisation: tuple[float, float] | None = None) -> tuple[Any, list[str]]:
     """(the network :func:`rebuild` makes, before its weights are loaded; the Lambda layers
     it replaced, described)."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
     layer_configs, model_name = _sequential_layers(config, path)

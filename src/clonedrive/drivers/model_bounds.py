@@ -142,7 +142,7 @@ def declared_weight_bytes(build: Callable[[], Any]) -> int:
     """
     import numpy as np
 
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()  # first: it chooses the backend, which Keras reads on import
     from keras.src.backend.common import global_state
@@ -174,7 +174,7 @@ def keras_archive_network(config: dict, *, safe_mode: bool) -> Callable[[], Any]
     ``config.json``, as a function for :func:`declared_weight_bytes`."""
 
     def build() -> Any:
-        from clonedrive.keras_backend import import_keras
+        from clonedrive.base.keras_backend import import_keras
 
         keras = import_keras()
         return keras.saving.deserialize_keras_object(

@@ -216,7 +216,7 @@ def _stored_weight_bytes(path: Path, kind: str) -> int:
 
 def keras_load(path: Path, *, safe_mode: bool) -> Any:
     """``keras.models.load_model`` for inference, its errors as :class:`ModelFileError`."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
     try:

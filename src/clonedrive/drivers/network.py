@@ -28,10 +28,10 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.drivers.crop import visible_rows
 from clonedrive.drivers.driving_settings import DrivingSettings
 from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
-from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
 if TYPE_CHECKING:

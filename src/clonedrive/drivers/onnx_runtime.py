@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.config import write_bytes_atomic
+from clonedrive.base.config import write_bytes_atomic
 
 #: The ONNX tensor element types a steering model's input may have, as NumPy dtypes.
 _ONNX_DTYPES = {"tensor(uint8)": np.uint8, "tensor(float)": np.float32,

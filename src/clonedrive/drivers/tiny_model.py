@@ -18,8 +18,8 @@ if TYPE_CHECKING:
 
 def build_tiny_model(seed: int = 0) -> keras.Model:
     """Rescaling -> Cropping2D -> one strided conv -> global average -> Dense(1), seeded weights."""
-    from clonedrive.keras_backend import import_keras
-    from clonedrive.udacity_spec import IMAGE_SHAPE
+    from clonedrive.base.keras_backend import import_keras
+    from clonedrive.base.udacity_spec import IMAGE_SHAPE
 
     keras = import_keras()
     from keras import layers
@@ -55,8 +55,8 @@ def build_road_follower(gain: float = 10.0, *, grass_threshold: float = 0.08,
     """
     import numpy as np
 
-    from clonedrive.keras_backend import import_keras
-    from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE, IMAGE_WIDTH
+    from clonedrive.base.keras_backend import import_keras
+    from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE, IMAGE_WIDTH
 
     if columns < 2 or columns % 2 or IMAGE_WIDTH % columns:
         raise ValueError(f"columns must be even and divide {IMAGE_WIDTH}, got {columns}")

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.config import write_json_atomic, write_text_atomic
-from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_SHAPE
+from clonedrive.base.config import write_json_atomic, write_text_atomic
+from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_SHAPE
 
 #: A gap between consecutive images longer than this starts a new segment [s].
 SEGMENT_GAP_S = 0.5
@@ -111,8 +111,8 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
     (a :class:`~clonedrive.drivers.network.NetworkPolicy`). Raises ``FileNotFoundError`` (no
     log) or ``ValueError`` (a log with fewer than 2 usable centre images).
     """
+    from clonedrive.base.images import ImageDecodeError, read_rgb
     from clonedrive.data.driving_log import read_driving_log
-    from clonedrive.images import ImageDecodeError, read_rgb
 
     config = config or CrosscheckConfig()
     log = read_driving_log(log_dir, verify_images="exists")
@@ -123,7 +123,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
     images, used, unreadable = [], [], []
     iterable = rows
     if progress:
-        from clonedrive.progress import progress_bar
+        from clonedrive.base.progress import progress_bar
 
         iterable = progress_bar(rows, desc="reading centre images", unit="row", leave=False)
     predicted_parts = []
@@ -253,7 +253,7 @@ def plot_crosscheck(path: Path, times, segments, human, smoothed, predicted,
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=110)
     plt.close(figure)
-    from clonedrive.config import write_bytes_atomic
+    from clonedrive.base.config import write_bytes_atomic
 
     write_bytes_atomic(path, buffer.getvalue())
     return path

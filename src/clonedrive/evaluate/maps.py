@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
 
-from clonedrive.config import atomic_path  # noqa: E402
+from clonedrive.base.config import atomic_path  # noqa: E402
 from clonedrive.world.track import Track  # noqa: E402
 
 

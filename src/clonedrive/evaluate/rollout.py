@@ -16,9 +16,9 @@ a constant, also in its off-road frames. A run with video renders whole frames. 
 records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
 
 Output file names (maps, videos, off-road frames) are made from the track's own name and the
-speed by :func:`clonedrive.paths.safe_stem`, never from the path a track was given by. eval.json
-is rewritten (atomically) as each run finishes, so an error late in an evaluation loses none of
-the runs that finished before it; ``"complete"`` says whether every run is in.
+speed by :func:`clonedrive.base.paths.safe_stem`, never from the path a track was given by.
+eval.json is rewritten (atomically) as each run finishes, so an error late in an evaluation
+loses none of the runs that finished before it; ``"complete"`` says whether every run is in.
 """
 
 from __future__ import annotations
@@ -32,13 +32,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from clonedrive.config import save_config, write_json_atomic
+from clonedrive.base.config import save_config, write_json_atomic
+from clonedrive.base.paths import safe_stem
+from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner, Step
 from clonedrive.evaluate.config import EvalConfig, RunSpec, run_specs
 from clonedrive.evaluate.reference import against_expert
-from clonedrive.paths import safe_stem
-from clonedrive.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
@@ -61,7 +61,7 @@ class _Run:
 
 def run_name(track_name: str, speed_mph: float, taken: set[str] | None = None) -> str:
     """The file-name stem of a run's outputs: the track's own name and the speed, made safe by
-    :func:`~clonedrive.paths.safe_stem`; ``-2``, ``-3``... when ``taken`` already holds it."""
+    :func:`~clonedrive.base.paths.safe_stem`; ``-2``, ``-3``... when ``taken`` already holds it."""
     stem = safe_stem(f"{track_name}_{speed_mph:g}mph")
     name, number = stem, 1
     while taken is not None and name in taken:
@@ -173,10 +173,10 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     config gives) and the :class:`Track` itself goes to the simulators, the workers and the
     expert's reference: a track file edited while an evaluation runs changes nothing in it.
     """
-    from clonedrive.config import config_to_dict
-    from clonedrive.keras_backend import compute_threads
-    from clonedrive.progress import progress_bar
-    from clonedrive.workers import default_workers
+    from clonedrive.base.config import config_to_dict
+    from clonedrive.base.keras_backend import compute_threads
+    from clonedrive.base.progress import progress_bar
+    from clonedrive.base.workers import default_workers
 
     parts = [config] if isinstance(config, EvalConfig) else list(config)
     if not parts:
@@ -251,7 +251,7 @@ def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list
     """Drive each group in a worker process, longest first (so that the last group to start
     is a short one); ``on_results(index, result)`` for each run, ``on_group(group)`` after
     each group."""
-    from clonedrive.workers import run_tasks
+    from clonedrive.base.workers import run_tasks
 
     order = sorted(range(len(groups)), key=lambda i: -cost[i])
     # Each worker builds a policy that drives as ``policy`` does: from the model's checked
@@ -428,7 +428,7 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
 def _save_frame(image: np.ndarray, path: Path) -> Path:
     import cv2
 
-    from clonedrive.config import write_bytes_atomic
+    from clonedrive.base.config import write_bytes_atomic
 
     ok, encoded = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     if not ok:

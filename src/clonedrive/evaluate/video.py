@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.images import ImageDecodeError, read_rgb
-from clonedrive.output_files import clear_temporary
-from clonedrive.udacity_spec import CONTROL_HZ
+from clonedrive.base.images import ImageDecodeError, read_rgb
+from clonedrive.base.output_files import clear_temporary
+from clonedrive.base.udacity_spec import CONTROL_HZ
 
 logger = logging.getLogger("clonedrive.video")
 
@@ -328,7 +328,7 @@ def encode_folder(
     A frame that does not decode, or whose size differs from the first good frame, is skipped
     and reported in :attr:`VideoSummary.skipped`. Raises ``ValueError`` if no frame is usable.
     """
-    from clonedrive.progress import progress_bar
+    from clonedrive.base.progress import progress_bar
 
     files = frame_files(folder)
     if not files:

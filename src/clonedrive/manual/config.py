@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from clonedrive.udacity_spec import JPEG_QUALITY, PORT
+from clonedrive.base.udacity_spec import JPEG_QUALITY, PORT
 
 #: Where ``R`` records unless told otherwise.
 DEFAULT_OUT_DIR = "data/manual"

@@ -20,9 +20,9 @@ from datetime import timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from clonedrive.base.udacity_spec import JPEG_QUALITY
 from clonedrive.manual.config import ManualConfig
 from clonedrive.manual.human_input import KEYBOARD
-from clonedrive.udacity_spec import JPEG_QUALITY
 from clonedrive.world.vehicle import Controls
 
 if TYPE_CHECKING:  # the simulator loads when a track opens, not when the CLI reads defaults
@@ -94,7 +94,7 @@ class SessionRecorder:
     def _open_sink(self, recording: ManualRecording, track: Track, time_s: float) -> None:
         """Start this recording's session in ``out_dir`` (its lock held) and open the sink."""
         from clonedrive import __version__
-        from clonedrive.config import config_to_dict
+        from clonedrive.base.config import config_to_dict
         from clonedrive.data.recorder import RowSink, prepare_log_folder, write_session_config
 
         existing_rows, start = prepare_log_folder(self.out_dir)

@@ -27,7 +27,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from clonedrive.config import atomic_path
+from clonedrive.base.config import atomic_path
 from clonedrive.manual.human_input import GAMEPAD_AXES
 from clonedrive.manual.overlay import Overlay
 from clonedrive.manual.session import MENU, DrivingSession

@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from clonedrive.base.keras_backend import import_keras
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
-from clonedrive.keras_backend import import_keras
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
 
 keras = import_keras()
 layers = keras.layers

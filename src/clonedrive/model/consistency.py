@@ -14,7 +14,7 @@ Each sample carries its pair's penalty, so the mean over the batch is MSE + W * 
 
 from __future__ import annotations
 
-from clonedrive.keras_backend import import_keras
+from clonedrive.base.keras_backend import import_keras
 
 keras = import_keras()
 

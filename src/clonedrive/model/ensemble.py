@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from clonedrive.base.keras_backend import import_keras
+from clonedrive.base.udacity_spec import IMAGE_SHAPE
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, check_model, has_speed_head
-from clonedrive.keras_backend import import_keras
-from clonedrive.udacity_spec import IMAGE_SHAPE
 
 #: The most members one ensemble may have (each adds a network's inference per frame).
 MAX_MEMBERS = 16

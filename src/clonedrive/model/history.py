@@ -15,7 +15,7 @@ import math
 import os
 from pathlib import Path
 
-from clonedrive.config import write_text_atomic
+from clonedrive.base.config import write_text_atomic
 
 HISTORY_NAME = "history.csv"
 HISTORY_COLUMNS = ("epoch", "loss", "val_loss", "mse", "val_mse", "seconds")

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.keras_backend import import_keras
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE, IMAGE_WIDTH
+from clonedrive.base.keras_backend import import_keras
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE, IMAGE_WIDTH
 
 #: Colour [R, G, B] the mask is painted in on overlays (the paper shows it in green).
 OVERLAY_RGB = (40, 255, 60)
@@ -169,9 +169,9 @@ def write_saliency(model_path: str | os.PathLike, sources: list[str | os.PathLik
     into ``out_dir``; returns what ``saliency.json`` holds. ``ValueError`` for an input that
     is neither a readable image nor a log.
     """
-    from clonedrive.config import write_json_atomic
+    from clonedrive.base.config import write_json_atomic
+    from clonedrive.base.paths import check_output_folder, inside, safe_stem
     from clonedrive.drivers.network import NetworkPolicy, load_model
-    from clonedrive.paths import check_output_folder, inside, safe_stem
 
     if frames_per_log < 1:
         raise ValueError(f"frames per log must be >= 1, got {frames_per_log}")
@@ -207,8 +207,8 @@ def write_saliency(model_path: str | os.PathLike, sources: list[str | os.PathLik
 
 
 def _gather_frames(sources, frames_per_log: int) -> list[tuple[str, np.ndarray]]:
+    from clonedrive.base.images import ImageDecodeError, read_rgb
     from clonedrive.data.driving_log import CSV_NAME, read_driving_log
-    from clonedrive.images import ImageDecodeError, read_rgb
 
     if not sources:
         raise ValueError("give at least one image or driving log")
@@ -240,7 +240,7 @@ def write_png(path: str | os.PathLike, image_rgb: np.ndarray) -> Path:
     """Write a uint8 RGB image as a PNG, atomically."""
     import cv2
 
-    from clonedrive.config import write_bytes_atomic
+    from clonedrive.base.config import write_bytes_atomic
 
     ok, data = cv2.imencode(".png", np.ascontiguousarray(image_rgb[:, :, ::-1]))
     if not ok:

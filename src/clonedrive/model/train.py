@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import (
+from clonedrive.base.config import (
     atomic_path,
     changed_settings,
     config_to_dict,
@@ -49,6 +49,7 @@ from clonedrive.config import (
     write_json_atomic,
     write_text_atomic,
 )
+from clonedrive.base.interrupts import raise_if_lost
 from clonedrive.data.recipe import (
     CORRECTION_RANGE,
     DEFAULT_CORRECTION,
@@ -58,7 +59,6 @@ from clonedrive.data.recipe import (
     recipe_to_toml,
 )
 from clonedrive.drivers.crop import visible_rows
-from clonedrive.interrupts import raise_if_lost
 from clonedrive.model.history import HISTORY_NAME, read_history, write_history
 
 logger = logging.getLogger(__name__)
@@ -197,7 +197,7 @@ def train(
     that made it (:func:`clonedrive.drivers.driving_settings.notes_for`); a resumed run keeps
     its ``last.keras``'s notes when given none.
     """
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 
@@ -344,7 +344,7 @@ def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
     """Save the model at ``keras_path`` in the legacy HDF5 format (atomically), with ``notes``
     (drivers.driving_settings) when given. A model with a speed head is saved with its
     steering output only: Udacity's drive.py expects one output."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 
@@ -574,9 +574,9 @@ def _open_cache(config: TrainConfig, samples, out: Path):
 def cached_rows(config: TrainConfig) -> tuple[int, int]:
     """The frame rows training reads: the network's crop, widened by augmentation's largest
     vertical shift (a shifted picture's visible rows come from up to that far away)."""
+    from clonedrive.base.udacity_spec import IMAGE_HEIGHT
     from clonedrive.data.augment import AugmentConfig
     from clonedrive.model.architectures import CROP_BOTTOM_PX
-    from clonedrive.udacity_spec import IMAGE_HEIGHT
 
     margin = AugmentConfig().vertical_shift_max_px if config.augment else 0
     return (max(0, config.crop_top_px - margin),
@@ -604,7 +604,7 @@ def _counts_text(counts: dict[str, int]) -> str:
 
 def _run_recorder_class():
     """The Keras callback class that records a run (built on first use: keras is heavy)."""
-    from clonedrive.keras_backend import import_keras
+    from clonedrive.base.keras_backend import import_keras
 
     keras = import_keras()
 

@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from clonedrive.config import save_config, write_json_atomic, write_text_atomic
+from clonedrive.base.config import save_config, write_json_atomic, write_text_atomic
 from clonedrive.recipes.book import DEFAULT_RECIPE, RecipeFile, RecordSpec, load_recipe_file
 from clonedrive.recipes.training import run_stages, stage_dirs, train_stages
 
@@ -106,9 +106,9 @@ def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
                   workers: int | None = None) -> list[dict]:
     """Record what is not recorded yet, the recordings spread over worker processes (each
     recording is seeded by its place in the list, so the data do not depend on the workers)."""
+    from clonedrive.base.workers import default_workers, run_tasks
     from clonedrive.data.driving_log import read_driving_log
     from clonedrive.data.recorder import RecordConfig
-    from clonedrive.workers import default_workers, run_tasks
 
     done: dict[int, dict] = {}
     tasks = []
@@ -168,7 +168,7 @@ def _check_same_recording(folder: Path, spec: RecordSpec, seed: int) -> None:
 
 
 def _record_task(task: dict) -> dict:
-    """One recording of the demo (in a worker process of :mod:`clonedrive.workers`)."""
+    """One recording of the demo (in a worker process of :mod:`clonedrive.base.workers`)."""
     from clonedrive.data.recorder import record
 
     summary = record(task["config"], task["out"], progress=False)

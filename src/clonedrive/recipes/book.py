@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from clonedrive.config import config_from_dict, parse_toml
+from clonedrive.base.config import config_from_dict, parse_toml
 from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reject_unknown
 from clonedrive.drivers.driving_settings import DrivingSettings
 
@@ -194,7 +194,7 @@ def load_recipe_file(name_or_path: str | os.PathLike) -> RecipeFile:
 def is_whole_recipe(path: str | os.PathLike) -> bool:
     """True for a built-in recipe name or a TOML file with a ``[recipe]`` table (a data-only
     recipe, data.recipe's format, has none). A file that is not TOML (or nests too deep, ...)
-    raises :func:`~clonedrive.config.parse_toml`'s ``ValueError`` now, before any work."""
+    raises :func:`~clonedrive.base.config.parse_toml`'s ``ValueError`` now, before any work."""
     if str(path) in BUILT_IN:
         return True
     try:

@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.evaluate.crosscheck import SEGMENT_GAP_S
 from clonedrive.replay.view import Rig, synthesise
-from clonedrive.udacity_spec import CONTROL_HZ
 from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
 
 SIDE_CAMERAS = ("left", "right")
@@ -118,7 +118,7 @@ def replayable_episodes(log_dir: str | os.PathLike, config: ReplayConfig) -> lis
 
 def frame_images(row) -> dict[str, np.ndarray]:
     """The row's images (RGB) by camera: the centre one, and the side ones it has."""
-    from clonedrive.images import read_rgb
+    from clonedrive.base.images import read_rgb
 
     images = {"center": read_rgb(row.center)}
     for camera in SIDE_CAMERAS:

@@ -9,7 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.config import atomic_path, write_json_atomic
+from clonedrive.base.config import atomic_path, write_json_atomic
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.replay.episode import (
     Episode,
     ReplayConfig,
@@ -21,7 +22,6 @@ from clonedrive.replay.episode import (
     replayable_episodes,
 )
 from clonedrive.replay.view import CALIBRATION_FRAMES, Rig, calibrate
-from clonedrive.udacity_spec import CONTROL_HZ
 
 JSON_NAME, PLOT_NAME, VIDEO_NAME = "replay.json", "replay.png", "replay.mp4"
 HUD_SCALE = 2  #: the video's frames are the synthesised views enlarged this many times

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 
 #: Rows below the horizon left out of the road region (too far away to compare pixel by pixel).
 ROAD_MARGIN_ROWS = 8

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import atomic_path
-from clonedrive.config import read_json as read_json_file
-from clonedrive.images import ImageDecodeError, read_rgb
+from clonedrive.base.config import atomic_path
+from clonedrive.base.config import read_json as read_json_file
+from clonedrive.base.images import ImageDecodeError, read_rgb
+from clonedrive.base.paths import safe_stem
 from clonedrive.model.history import HISTORY_NAME
-from clonedrive.paths import safe_stem
 from clonedrive.report.document import Note, Section
 
 logger = logging.getLogger("clonedrive.report.writeup")
@@ -189,7 +189,7 @@ def _outside_problem(run_dir: Path, folder: Path, name: object) -> str | None:
 
 
 def read_json(path: Path) -> dict:
-    """The JSON object in ``path`` (read by :func:`clonedrive.config.read_json`: bounded, one
+    """The JSON object in ``path`` (read by :func:`clonedrive.base.config.read_json`: bounded, one
     line naming the file for anything unreadable); ``ValueError`` if it holds something else."""
     data = read_json_file(path)
     if not isinstance(data, dict):
@@ -212,7 +212,7 @@ def read_json_or_none(path: Path, errors: dict[str, str] | None = None) -> dict 
 
 
 def read_image_or_none(path: str | os.PathLike) -> np.ndarray | None:
-    """A picture file as uint8 RGB (:func:`clonedrive.images.read_rgb`), or None if it is
+    """A picture file as uint8 RGB (:func:`clonedrive.base.images.read_rgb`), or None if it is
     missing or does not decode (the section then says so)."""
     try:
         return read_rgb(path)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import atomic_path
+from clonedrive.base.config import atomic_path
 
 #: Figure resolution, dots per inch.
 DPI = 100

@@ -37,7 +37,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from clonedrive.config import write_text_atomic
+from clonedrive.base.config import write_text_atomic
 from clonedrive.report.context import (
     OPTIONAL_SECTION_TITLES,
     SECTION_TITLES,
@@ -98,7 +98,7 @@ def write_report(run_dir: str | os.PathLike, out_dir: str | os.PathLike | None =
                  config: ReportConfig | None = None, *, progress: bool = False) -> ReportResult:
     """Write ``report.md``, ``report.html`` and ``report/*.png`` into ``out_dir`` (default:
     ``run_dir``) describing the run in ``run_dir``."""
-    from clonedrive.progress import progress_bar
+    from clonedrive.base.progress import progress_bar
 
     config = config or ReportConfig()
     parts = find_run_parts(run_dir)

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.sim.conditions import fog_alpha, jpeg_round_trip
 from clonedrive.sim.engine import texture_rgb
 from clonedrive.sim.scene import FAR_M, NEAR_M, Scene
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 
 
 @dataclass(frozen=True)

@@ -302,6 +302,6 @@ def jpeg_round_trip(image_rgb: np.ndarray, quality: int) -> np.ndarray:
                             [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError(f"could not encode a JPEG of quality {quality}")
-    from clonedrive.images import decode_rgb
+    from clonedrive.base.images import decode_rgb
 
     return decode_rgb(data, name=f"a JPEG of quality {quality}")

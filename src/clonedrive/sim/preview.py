@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import write_bytes_atomic
+from clonedrive.base.config import write_bytes_atomic
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.sim.scenery import find_bridge, longest_run
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track
 

@@ -4,7 +4,7 @@ Both are pure functions of the track's geometry, the look's style and the road w
 0.2-0.3 s a scene (lake: 0.16 s of scenery, 0.08 s of textures). A process that drives several
 cars on one track, together (a lock-step group of set speeds: 8 cars build one scenery) or one
 after the other (a notebook, the tests), builds them once. (Pool workers are fresh processes
-for each task: see :mod:`clonedrive.workers`.) What it hands out is shared, so it is only read.
+for each task: see :mod:`clonedrive.base.workers`.) What it hands out is shared, so it is only read.
 """
 
 from __future__ import annotations

@@ -21,10 +21,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.sim.conditions import Conditions
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.sim.laps import LapCounter, OffRoadEvent
-from clonedrive.udacity_spec import CONTROL_HZ, IMAGE_HEIGHT, IMAGE_WIDTH
 from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track, wrap_angle
 from clonedrive.world.vehicle import (

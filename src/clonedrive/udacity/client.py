@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from clonedrive.base.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.udacity import protocol
-from clonedrive.udacity_spec import JPEG_QUALITY, MAX_WHEEL_ANGLE_DEG, PORT, SET_SPEED_MPH
 from clonedrive.world.vehicle import Controls, check_set_speed
 
 logger = logging.getLogger("clonedrive.client")
@@ -464,8 +464,8 @@ def drive_autonomous(config: AutonomousConfig, *, progress: bool = True) -> dict
     counts. Each control step sends the center camera and the car's state, and applies the
     server's reply for one control period (1/15 s of simulated time). Leaving the road is an
     intervention: the car is put back on the centreline at ``speed_mph`` and the run goes on."""
+    from clonedrive.base.progress import progress_bar
     from clonedrive.episode.runner import Episode, Step, drive
-    from clonedrive.progress import progress_bar
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim_config = SimConfig(cameras=("center",), scenery=config.scenery, renderer=config.renderer)

@@ -18,8 +18,8 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
-from clonedrive.config import write_bytes_atomic
-from clonedrive.output_files import probe_writable
+from clonedrive.base.config import write_bytes_atomic
+from clonedrive.base.output_files import probe_writable
 
 logger = logging.getLogger("clonedrive.udacity")
 

@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.images import ImageDecodeError, decode_rgb, jpeg_size
-from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH, JPEG_QUALITY
+from clonedrive.base.images import ImageDecodeError, decode_rgb, jpeg_size
+from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_WIDTH, JPEG_QUALITY
 
 # Engine.IO packet types (protocol 3).
 ENGINE_OPEN = "0"

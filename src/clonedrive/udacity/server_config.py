@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
-from clonedrive.udacity_spec import PORT
+from clonedrive.base.udacity_spec import PORT
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = PORT

@@ -23,8 +23,8 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.spatial import cKDTree
 
-from clonedrive.config import JsonFileError, read_json
-from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
+from clonedrive.base.config import JsonFileError, read_json
+from clonedrive.base.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 #: Wheelbase [m] and maximum wheel angle [deg] that every track must be drivable with.
 DRIVABLE_WHEELBASE_M = 2.7

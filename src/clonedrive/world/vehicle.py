@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
+from clonedrive.base.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 MPH_TO_MPS = 0.44704
 GRAVITY_MPS2 = 9.81

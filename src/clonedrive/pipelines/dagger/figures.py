@@ -14,7 +14,7 @@ def plot_dagger(report: dict, path: Path) -> Path:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from clonedrive.config import atomic_path
+    from clonedrive.base.config import atomic_path
 
     rows = report["iterations"]
     curve = _plain_rows(report)

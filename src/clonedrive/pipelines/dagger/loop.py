@@ -8,7 +8,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from clonedrive.config import changed_settings, config_to_dict, read_json, write_json_atomic
+from clonedrive.base.config import changed_settings, config_to_dict, read_json, write_json_atomic
 from clonedrive.pipelines.dagger.config import (
     DAGGER_JSON,
     DAGGER_PNG,
@@ -30,10 +30,10 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
                *, progress: bool = True) -> dict:
     """DAgger from the training run folder ``base_run`` into ``out_dir`` (see the module doc).
     Returns what ``dagger.json`` holds."""
+    from clonedrive.base.paths import check_output_folder
     from clonedrive.data.recipe import load_recipe
     from clonedrive.drivers.network import load_policy
     from clonedrive.model.train import load_run_config
-    from clonedrive.paths import check_output_folder
 
     base = Path(base_run)
     base_model = base / "model.keras"

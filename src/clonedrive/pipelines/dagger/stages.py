@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clonedrive.config import write_json_atomic
+from clonedrive.base.config import write_json_atomic
 from clonedrive.pipelines.dagger.config import START_TIME, DaggerConfig
 from clonedrive.pipelines.dagger.mixed_driver import MixedDriver
 
@@ -21,12 +21,12 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     """Drive ``config.tracks`` with the network mixed with the expert (``beta``), the expert
     labelling every step, and write each track's recording under ``out/<track>/``. Returns
     the collection's figures (also written as ``out/collect.json``)."""
+    from clonedrive.base.paths import safe_stem
     from clonedrive.data.recorder import RowSink, prepare_log_folder
     from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
     from clonedrive.episode.drivers import ExpertCar
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
-    from clonedrive.paths import safe_stem
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.world.catalog import load_track
 
@@ -97,9 +97,9 @@ def record_plain(config: DaggerConfig, labels: int, out: Path) -> dict:
     """The plain-cloning comparison's data: the expert drives ``config.tracks`` (steering
     noise ``plain_noise``, clean labels) until about ``labels`` rows are recorded, split
     evenly over the tracks."""
+    from clonedrive.base.paths import safe_stem
+    from clonedrive.base.udacity_spec import CONTROL_HZ
     from clonedrive.data.recorder import RecordConfig, record
-    from clonedrive.paths import safe_stem
-    from clonedrive.udacity_spec import CONTROL_HZ
     from clonedrive.world.catalog import load_track
     from clonedrive.world.vehicle import MPH_TO_MPS
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from clonedrive.base.paths import safe_stem
 from clonedrive.bench.leaderboard import tables
-from clonedrive.paths import safe_stem
 from clonedrive.report.context import (
     OPTIONAL_SECTION_TITLES,
     ReportContext,

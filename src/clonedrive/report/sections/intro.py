@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from datetime import datetime
 
+from clonedrive.base.udacity_spec import MAX_WHEEL_ANGLE_DEG
 from clonedrive.report import formatting as fmt
 from clonedrive.report.context import ReportContext
 from clonedrive.report.document import Bullets, Paragraph
-from clonedrive.udacity_spec import MAX_WHEEL_ANGLE_DEG
 
 
 def build(ctx: ReportContext) -> list:

@@ -27,9 +27,9 @@ def build(ctx: ReportContext) -> list[Section]:
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No trained `model.keras`: the real Udacity logs were not "
                                   "checked.")
+    from clonedrive.base.paths import safe_stem
     from clonedrive.drivers.network import load_policy
     from clonedrive.evaluate.crosscheck import CrosscheckConfig, crosscheck
-    from clonedrive.paths import safe_stem
 
     policy = load_policy(model_path)
     config = CrosscheckConfig()

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.evaluate.video import read_stills
 from clonedrive.report import formatting as fmt
 from clonedrive.report.context import SECTION_TITLES, ReportContext, copy_figure, figure_name
 from clonedrive.report.document import Figure, Gallery, Paragraph, Section, Table
 from clonedrive.report.sections.failures import failure_analysis
 from clonedrive.report.sections.recipe import lead, recipe_blocks
-from clonedrive.udacity_spec import CONTROL_HZ
 
 
 def build(ctx: ReportContext) -> list[Section]:

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import math
 
+from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.model.history import HISTORY_NAME, read_history
 from clonedrive.report import formatting as fmt
 from clonedrive.report.context import SECTION_TITLES, ReportContext, copy_figure
 from clonedrive.report.document import Figure, Paragraph, Section, Table
-from clonedrive.udacity_spec import CONTROL_HZ
 
 
 def build(ctx: ReportContext) -> list[Section]:

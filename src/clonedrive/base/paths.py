@@ -14,7 +14,7 @@ import os
 import re
 from pathlib import Path
 
-from clonedrive.output_files import probe_writable
+from clonedrive.base.output_files import probe_writable
 
 #: Longest file-name stem we make [characters]; file systems allow 255 bytes per component.
 MAX_STEM_CHARS = 80

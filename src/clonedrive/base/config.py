@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from clonedrive.output_files import clear_temporary, open_output
+from clonedrive.base.output_files import clear_temporary, open_output
 
 T = TypeVar("T")
 

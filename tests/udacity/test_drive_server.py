@@ -353,6 +353,22 @@ def test_disconnect_or_close_ends_the_session(goodbye: str) -> None:
     assert policy.resets == 2  # each connection starts a fresh episode
 
 
+
+def test_after_a_socketio_disconnect_the_engineio_close_still_gets_through() -> None:
+    """python-socketio's client sends DISCONNECT, then its Engine.IO close from another
+    thread: the server keeps the socket open for that close (its sending thread once failed
+    with a broken pipe)."""
+    async def script(ws, handshake):
+        await ws.send("41")
+        await asyncio.sleep(0.2)  # the client's second thread, a moment later
+        await ws.send("1")  # raises ConnectionClosed if the server closed after "41"
+        with pytest.raises(ConnectionClosed):
+            await receive(ws)
+        return ws.close_code
+
+    with DriveServer(RecordingPolicy(), port=0) as server:
+        assert run_client(server.port, script) == 1000
+
 def test_image_folder_saves_each_frame(tmp_path: Path, recorded_jpeg: bytes) -> None:
     folder = tmp_path / "run1"
 

@@ -60,7 +60,16 @@ from clonedrive.udacity.drive_stats import (
 )
 from clonedrive.udacity.frame_folder import FrameFolder
 from clonedrive.udacity.server_config import IDLE_CLOSE_CODE, DriveServerConfig
-from clonedrive.udacity.triage import CLOSE, IGNORE, MANUAL, PING, SAFE, TELEMETRY, triage
+from clonedrive.udacity.triage import (
+    CLOSE,
+    DISCONNECT,
+    IGNORE,
+    MANUAL,
+    PING,
+    SAFE,
+    TELEMETRY,
+    triage,
+)
 
 logger = logging.getLogger("clonedrive.udacity")
 
@@ -72,6 +81,11 @@ IDLE_CLOSE_GRACE_S = 1.0
 
 class _CloseRequested(Exception):
     """The client asked to close (Engine.IO close or Socket.IO disconnect)."""
+
+    def __init__(self, disconnect: bool) -> None:
+        super().__init__()
+        #: Socket.IO's DISCONNECT: the client sends its Engine.IO close next
+        self.disconnect = disconnect
 
 
 #: The connection whose message is being handled (each handler task sets its own).
@@ -296,7 +310,9 @@ class DriveServer:
             answered = connection.telemetry
             try:
                 reply = await self._on_message(message)
-            except _CloseRequested:
+            except _CloseRequested as request:
+                if request.disconnect:
+                    await self._await_engine_close(websocket)
                 return
             if connection.telemetry > answered:
                 deadline = loop.time() + idle_s
@@ -316,6 +332,17 @@ class DriveServer:
             await self._close_idle(websocket, connection, reason)
             return False
         return True
+
+    async def _await_engine_close(self, websocket: ServerConnection) -> None:
+        """After Socket.IO's DISCONNECT, read (for at most :data:`IDLE_CLOSE_GRACE_S`) until
+        the client's Engine.IO close or its own closing: python-socketio's client sends both,
+        and its sending thread fails on a socket closed between them."""
+        try:
+            async with asyncio.timeout(IDLE_CLOSE_GRACE_S):
+                while await websocket.recv() != protocol.ENGINE_CLOSE:
+                    pass
+        except (TimeoutError, ConnectionClosed):
+            pass
 
     async def _close_idle(self, websocket: ServerConnection, connection: Connection,
                           reason: str) -> None:
@@ -342,7 +369,7 @@ class DriveServer:
         if what.outcome == IGNORE:
             return self._ignore(what.reason, what.detail)
         if what.outcome == CLOSE:
-            raise _CloseRequested
+            raise _CloseRequested(what.reason == DISCONNECT)
         if what.outcome == PING:
             self._stats.pings += 1
         elif what.outcome == MANUAL:

@@ -29,6 +29,8 @@ from clonedrive.udacity import protocol
 ANSWER = "answer"  #: send ``frame`` (None: send nothing)
 PING = "ping"  #: an Engine.IO ping: send ``frame``, the pong
 CLOSE = "close"  #: the client asked to close (Engine.IO close or Socket.IO disconnect)
+#: A CLOSE's reason when it was Socket.IO's DISCONNECT: the client's Engine.IO close follows.
+DISCONNECT = "disconnect"
 MANUAL = "manual"  #: telemetry null: the simulator is in manual mode
 TELEMETRY = "telemetry"  #: a telemetry event: drive with ``payload``
 SAFE = "safe"  #: a telemetry-like frame that cannot be used: the safe command
@@ -42,7 +44,7 @@ class Triage:
     outcome: str  #: one of the outcomes above
     frame: str | None = None  #: ANSWER, PING: the reply frame
     payload: object = None  #: TELEMETRY: the event's first argument
-    reason: str = ""  #: SAFE, IGNORE: the counted reason
+    reason: str = ""  #: SAFE, IGNORE: the counted reason; CLOSE: DISCONNECT or ""
     detail: str = ""  #: SAFE, IGNORE: what was wrong, for the log
 
 
@@ -84,7 +86,7 @@ def _triage_socket(data: str, telemetry_like: bool) -> Triage:
     if packet.type == protocol.SOCKET_CONNECT:
         return Triage(ANSWER, frame=protocol.CONNECT_FRAME)
     if packet.type == protocol.SOCKET_DISCONNECT:
-        return Triage(CLOSE)
+        return Triage(CLOSE, reason=DISCONNECT)
     if packet.type != protocol.SOCKET_EVENT:
         return Triage(IGNORE, reason="garbage",
                       detail=f"Socket.IO packet type {packet.type} not handled")

@@ -64,6 +64,12 @@ def test_a_copied_suite_can_be_edited(tmp_path):
     (BASE.replace('["clear"]', '["dusk"]'), "'dusk' is not defined"),
     (BASE.replace("name = \"a\"", "name = \"a\"\nlaps = 2"), "unknown key"),
     ("id = [", "not valid TOML"),
+    (BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\ndirections = ["back"]'),
+     "directions must be"),
+    (BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\nstarts = [1.0]'),
+     r"starts must be .* \[0, 1\)"),
+    (BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\nstarts = [0.5, 0.5]'),
+     "distinct"),
 ])
 def test_bad_suites_say_where(tmp_path, change, message):
     with pytest.raises(SuiteError, match=message):
@@ -77,3 +83,39 @@ def test_suite_text_is_literal_in_the_leaderboard_markdown() -> None:
     assert _md("a|b *c* <img>\nnext") == "a\\|b \\*c\\* \\<img\\> next"
     row = _markdown_table(["model"], [["x | y"]])[-1]
     assert row == "| x \\| y |"
+
+
+def test_directions_and_starts_multiply_a_split_and_name_their_references(tmp_path):
+    text = BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\n'
+                        'directions = ["forward", "reverse"]\nstarts = [0.0, 0.25, 0.5]\n'
+                        "seed = 40")
+    episodes = load_suite(write(tmp_path, text)).episodes()
+    assert [(e.reverse, e.start_fraction) for e in episodes] == [
+        (False, 0.0), (False, 0.25), (False, 0.5), (True, 0.0), (True, 0.25), (True, 0.5)]
+    assert [e.seed for e in episodes] == list(range(40, 46))
+    assert [e.reference_key for e in episodes[2:4]] == ["lake@20/start=0.5", "lake@20/reverse"]
+    assert episodes[0].reference_key == "lake@20"  # v2's names where nothing is new
+    assert episodes[4].reset_options(1000.0) == {"reverse": True, "s_m": 250.0}
+
+
+def test_a_split_without_directions_or_starts_drives_as_before():
+    suite = load_suite("v2")
+    assert all(not e.reverse and e.start_fraction == 0.0 for e in suite.episodes())
+    assert sum(split.size for split in suite.splits) == len(suite.episodes()) == 44
+
+
+def test_the_expert_drives_a_whole_lap_from_any_start_in_either_direction(tmp_path):
+    """A lap is a whole track's length from wherever the car starts; the expert's reference
+    laps (physics only) are clean in both directions and from a later start."""
+    from clonedrive.bench.driving import drive_batch
+
+    text = BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\n'
+                        'directions = ["forward", "reverse"]\nstarts = [0.0, 0.5]')
+    specs = load_suite(write(tmp_path, text)).episodes()
+    results = drive_batch({"kind": "expert", "episodes": specs})
+    assert [(r["reverse"], r["start_fraction"]) for r in results] == [
+        (False, 0.0), (False, 0.5), (True, 0.0), (True, 0.5)]
+    assert all(r["clean"] and r["lap_time_s"] for r in results)
+    lake_m = results[0]["route_m"]
+    assert all(r["distance_m"] >= lake_m for r in results)
+    assert len({spec.reference_key for spec in specs}) == 4  # four references, not one

@@ -6,7 +6,8 @@ loads the model once and drives its episodes through the episode runner
 has its episode's conditions (sim/conditions.py), its own PI speed controller and, under a
 latency condition, a queue that holds its decisions back that many control steps. An **expert
 batch** drives the reference laps: the expert (state only, no cameras) once per (track, speed
-cap). Both return plain dicts (what bench.json keeps per run), in the batch's order.
+cap, direction, start). Both return plain dicts (what bench.json keeps per run), in the
+batch's order.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ def _result(spec: EpisodeSpec, episode: Episode, lap_time_s: float | None) -> di
         "lap_time_s": None if lap_time_s is None else round(lap_time_s, 3),
         "clean": bool(summary["laps_completed"] >= spec.laps),
         "route_m": round(float(episode.sim.track.length_m) * spec.laps, 1),
+        "reverse": spec.reverse, "start_fraction": spec.start_fraction,
     })
     return summary
 
@@ -99,7 +101,8 @@ def drive_batch(task: dict) -> list[dict]:
 
 def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> list[Episode]:
     return [Episode(sim, EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph, **rules),
-                    track=spec.track, seed=0) for sim, spec in zip(sims, specs, strict=True)]
+                    track=spec.track, seed=0, options=spec.reset_options(sim.track.length_m))
+            for sim, spec in zip(sims, specs, strict=True)]
 
 
 def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
@@ -145,7 +148,8 @@ def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
     sims = [Simulator(spec.track, SimConfig(cameras=())) for spec in specs]
     try:
         episodes = _episodes(sims, specs, rules)
-        cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
+        cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph,
+                                                               reverse=spec.reverse)))
                 for sim, spec in zip(sims, specs, strict=True)]
         return _drive(episodes, PerCar(cars), specs)
     finally:

@@ -31,7 +31,7 @@ from clonedrive.bench.scores import (
     run_scores,
     split_scores,
 )
-from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite
+from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite, reference_name
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 
 #: bench.json's format version.
@@ -121,7 +121,8 @@ def _label_and_path(entry: str) -> tuple[str, str]:
 
 def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[EpisodeSpec]]:
     """The pool's tasks: expert reference batches first, then each model's batches; and the
-    reference episodes (one per track and speed cap, driven under the clear look)."""
+    reference episodes (one per track, speed cap, direction and start, driven under the clear
+    look)."""
     from dataclasses import replace
 
     from clonedrive.sim.conditions import Conditions
@@ -130,7 +131,7 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
     if not episodes:
         raise ValueError(f"suite {suite.id}: no split named {', '.join(config.splits)}; "
                          f"it has {', '.join(suite.split_names())}")
-    references: dict[tuple[str, float], EpisodeSpec] = {}
+    references: dict[str, EpisodeSpec] = {}
     for spec in episodes:
         if spec.reference_key not in references:
             references[spec.reference_key] = replace(
@@ -203,6 +204,12 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
     return report
 
 
+def _reference_of(run: dict) -> str:
+    """The name of the expert reference a run (or a reference run) belongs to."""
+    return reference_name(run["track"], run["speed_mph"], bool(run.get("reverse", False)),
+                          float(run.get("start_fraction", 0.0)))
+
+
 def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchConfig,
              suite: Suite) -> dict:
     """bench.json's reference, runs, models and methods from the finished tasks."""
@@ -211,7 +218,7 @@ def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchCon
     for index, task in enumerate(tasks):
         if task["kind"] == "expert" and index in results:
             for run in results[index]:
-                reference[f"{run['track']}@{run['speed_mph']:g}"] = run
+                reference[_reference_of(run)] = run
     models: dict[str, dict] = {}
     for index, task in enumerate(tasks):
         if task["kind"] != "model":
@@ -219,7 +226,7 @@ def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchCon
         model = models.setdefault(task["entry"], {"label": task["label"], "path": task["model"],
                                                   "runs": []})
         for run in results.get(index, []):
-            ref = reference.get(f"{run['track']}@{run['speed_mph']:g}")
+            ref = reference.get(_reference_of(run))
             model["runs"].append({**run, "scores": run_scores(run, ref)})
     for model in models.values():
         model["splits"] = {}

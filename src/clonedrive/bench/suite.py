@@ -1,14 +1,18 @@
 """Benchmark suites: named, versioned splits of episodes, read from a TOML file.
 
-A suite file (``bench/suites/v2.toml`` is the built-in ``v2``; copy it to make your own) holds
+A suite file (``bench/suites/v3.toml`` is the built-in ``v3``; copy it to make your own) holds
 an ``id``, the laps per episode, ``[[split]]`` tables and ``[conditions.NAME]`` families (see
 :mod:`clonedrive.sim.conditions`). A split drives every combination of its ``tracks``,
-``speeds_mph`` and ``conditions`` once; episode ``i`` of a split draws its conditions from its
-family with the seed ``seed + i``. So a suite is a fixed list of episodes: the same every time.
+``speeds_mph``, ``directions`` (``forward``, ``reverse``; default forward only), ``starts``
+(where on the lap the car starts, as a fraction of the track from its start line; default 0)
+and ``conditions`` once, in that nesting; episode ``i`` of a split draws its conditions from
+its family with the seed ``seed + i``. So a suite is a fixed list of episodes: the same every
+time. A lap is a whole track's length from wherever the car starts.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from importlib import resources
@@ -20,7 +24,9 @@ from clonedrive.world.catalog import load_track
 from clonedrive.world.track import TrackError
 
 SUITE_KEYS = ("id", "description", "laps", "split", "conditions")
-SPLIT_KEYS = ("name", "description", "tracks", "speeds_mph", "conditions", "seed")
+SPLIT_KEYS = ("name", "description", "tracks", "speeds_mph", "directions", "starts",
+              "conditions", "seed")
+DIRECTIONS = ("forward", "reverse")
 #: Built-in suites no longer shipped, and why: their figures cannot be reproduced.
 RETIRED_SUITES = {
     "v1": "retired: 6 of its generated lake tracks had stretches of road under the lake's "
@@ -46,6 +52,8 @@ class EpisodeSpec:
     seed: int  #: conditions seed (split seed + index)
     conditions: Conditions
     laps: int
+    reverse: bool = False  #: driven against the track's direction
+    start_fraction: float = 0.0  #: where the car starts: this fraction of the track along
 
     @property
     def key(self) -> str:
@@ -53,9 +61,26 @@ class EpisodeSpec:
         return f"{self.split}/{self.index:03d}"
 
     @property
-    def reference_key(self) -> tuple[str, float]:
-        """The expert reference this episode is compared with: same track and speed cap."""
-        return (self.track, self.speed_mph)
+    def reference_key(self) -> str:
+        """The expert reference this episode is compared with: same track, speed cap,
+        direction and start."""
+        return reference_name(self.track, self.speed_mph, self.reverse, self.start_fraction)
+
+    def reset_options(self, track_length_m: float) -> dict:
+        """The simulator's reset options that place the car for this episode."""
+        return {"reverse": self.reverse, "s_m": self.start_fraction * track_length_m}
+
+
+def reference_name(track: str, speed_mph: float, reverse: bool = False,
+                   start_fraction: float = 0.0) -> str:
+    """An expert reference's name in bench.json: ``track@speed`` (v2's names), with
+    ``/reverse`` and ``/start=F`` where they are not the defaults."""
+    name = f"{track}@{float(speed_mph):g}"
+    if reverse:
+        name += "/reverse"
+    if start_fraction:
+        name += f"/start={float(start_fraction):g}"
+    return name
 
 
 @dataclass(frozen=True)
@@ -66,6 +91,14 @@ class Split:
     speeds_mph: tuple[float, ...]
     conditions: tuple[str, ...]
     seed: int
+    directions: tuple[str, ...] = ("forward",)
+    starts: tuple[float, ...] = (0.0,)
+
+    @property
+    def size(self) -> int:
+        """How many episodes the split holds."""
+        return (len(self.tracks) * len(self.speeds_mph) * len(self.directions)
+                * len(self.starts) * len(self.conditions))
 
 
 @dataclass(frozen=True)
@@ -83,16 +116,15 @@ class Suite:
         for split in self.splits:
             if splits and split.name not in splits:
                 continue
-            index = 0
-            for track in split.tracks:
-                for speed in split.speeds_mph:
-                    for family_name in split.conditions:
-                        seed = split.seed + index
-                        family = self.families[family_name]
-                        out.append(EpisodeSpec(split=split.name, index=index, track=track,
-                                               speed_mph=speed, family=family_name, seed=seed,
-                                               conditions=family.sample(seed), laps=self.laps))
-                        index += 1
+            combinations = itertools.product(split.tracks, split.speeds_mph, split.directions,
+                                             split.starts, split.conditions)
+            for index, (track, speed, direction, start, family_name) in enumerate(combinations):
+                seed = split.seed + index
+                out.append(EpisodeSpec(
+                    split=split.name, index=index, track=track, speed_mph=speed,
+                    family=family_name, seed=seed,
+                    conditions=self.families[family_name].sample(seed), laps=self.laps,
+                    reverse=direction == "reverse", start_fraction=start))
         return out
 
     def split_names(self) -> list[str]:
@@ -103,7 +135,8 @@ class Suite:
             "id": self.id, "description": self.description, "laps": self.laps,
             "source": self.source,
             "splits": [{"name": s.name, "description": s.description, "tracks": list(s.tracks),
-                        "speeds_mph": list(s.speeds_mph), "conditions": list(s.conditions),
+                        "speeds_mph": list(s.speeds_mph), "directions": list(s.directions),
+                        "starts": list(s.starts), "conditions": list(s.conditions),
                         "seed": s.seed} for s in self.splits],
             "conditions": {name: family.to_dict() for name, family in self.families.items()},
         }
@@ -179,7 +212,7 @@ def _parse(data: dict, source: str) -> Suite:
         if split.name in {s.name for s in splits}:
             raise SuiteError(f"{source}: split name {split.name!r} is used twice")
         splits.append(split)
-        episodes += len(split.tracks) * len(split.speeds_mph) * len(split.conditions)
+        episodes += split.size
     if episodes > MAX_EPISODES:
         raise SuiteError(f"{source}: {episodes} episodes; a suite holds at most {MAX_EPISODES}")
     return Suite(id=suite_id, description=_description(data, source), laps=laps,
@@ -229,4 +262,23 @@ def _parse_split(table: object, where: str, families: dict) -> Split:
         raise SuiteError(f"{where}: seed must be a whole number >= 0")
     return Split(name=name, description=_description(table, where), tracks=tuple(tracks),
                  speeds_mph=tuple(float(v) for v in speeds), conditions=tuple(conditions),
-                 seed=seed)
+                 seed=seed, directions=_directions(table, where), starts=_starts(table, where))
+
+
+def _directions(table: dict, where: str) -> tuple[str, ...]:
+    directions = table.get("directions", ["forward"])
+    if not isinstance(directions, list) or not directions or any(
+            d not in DIRECTIONS for d in directions) or len(set(directions)) < len(directions):
+        raise SuiteError(f"{where}: directions must be a list of distinct values from "
+                         f"{', '.join(DIRECTIONS)}, got {directions!r}")
+    return tuple(directions)
+
+
+def _starts(table: dict, where: str) -> tuple[float, ...]:
+    starts = table.get("starts", [0.0])
+    if not isinstance(starts, list) or not starts or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v < 1
+            for v in starts) or len(set(starts)) < len(starts):
+        raise SuiteError(f"{where}: starts must be a list of distinct fractions of the lap in "
+                         f"[0, 1), got {starts!r}")
+    return tuple(float(v) for v in starts)

@@ -84,11 +84,13 @@ def drive_batch(task: dict) -> list[dict]:
     """Drive one batch: ``{"kind": "model", "model": path, "policy_options": {...},
     "scenery": bool, "episodes": [EpisodeSpec...], "portable": traces or None}`` (the options
     are NetworkPolicy's, as :meth:`BenchConfig.policy_options` gives them) or ``{"kind":
-    "expert", "episodes": [...]}``. Returns one result dict per episode, in order."""
+    "expert", "episodes": [...], "latency": bool}`` (``latency``: the episodes' actuation
+    latency too; the references are driven without). Returns one result dict per episode, in
+    order."""
     specs: list[EpisodeSpec] = list(task["episodes"])
     rules = {"max_seconds": task.get("max_seconds")}
     if task["kind"] == "expert":
-        return _drive_expert(specs, rules)
+        return _drive_expert(specs, rules, latency=bool(task.get("latency", False)))
     return _drive_model(task["model"], specs, rules,
                         policy_options=dict(task.get("policy_options", {})),
                         trust=bool(task.get("trust_model", False)),
@@ -141,7 +143,11 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
         pool.close()
 
 
-def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
+def _drive_expert(specs: list[EpisodeSpec], rules: dict, *, latency: bool = False
+                  ) -> list[dict]:
+    """The expert's laps of ``specs`` (state only). With ``latency`` each car obeys as late as
+    its episode's conditions say, as a network's would: whether the expert can drive an
+    episode clean at all (a suite's episodes must stay within physics)."""
     from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
     from clonedrive.episode.drivers import ExpertCar
 
@@ -151,7 +157,11 @@ def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
         cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph,
                                                                reverse=spec.reverse)))
                 for sim, spec in zip(sims, specs, strict=True)]
-        return _drive(episodes, PerCar(cars), specs)
+        driver = PerCar(cars)
+        delays = [spec.conditions.latency_steps for spec in specs]
+        if latency and any(delays):
+            driver = DelayedDriver(driver, delays)
+        return _drive(episodes, driver, specs)
     finally:
         for sim in sims:
             sim.close()

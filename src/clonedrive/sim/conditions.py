@@ -264,6 +264,18 @@ FAMILIES: dict[str, ConditionFamily] = {family.name: family for family in (
             camera_pitch_deg=(-2.5, 2.5), jpeg_quality=(25, 50), pixel_noise_std=(3.0, 8.0)),
     _family("latency", "the car applies each decision 1-3 control steps late",
             held_out=True, latency_steps=(1, 3)),
+    # Suite v3's harder tier: a held-out look and a late car together.
+    _family("dusk-late", "dusk, and each decision applied 1-3 control steps late",
+            held_out=True, sun_elevation_deg=(4.0, 9.0), sun_azimuth_deg=(0.0, 360.0),
+            light=(0.45, 0.6), warmth=(0.25, 0.4), sky=(0.45, 0.6), fog=(1.0, 2.0),
+            shadows=0.5, latency_steps=(1, 3)),
+    _family("fog-late", "thick fog, and each decision applied 1-3 control steps late",
+            held_out=True, visibility_m=(60.0, 120.0), fog=(3.0, 5.0), light=(0.8, 0.95),
+            shadows=0.3, latency_steps=(1, 3)),
+    _family("sensor-late", "the sensor family's camera, and each decision applied 1-3 "
+            "control steps late", held_out=True, camera_height_m=(-0.15, 0.15),
+            camera_pitch_deg=(-2.5, 2.5), jpeg_quality=(25, 50), pixel_noise_std=(3.0, 8.0),
+            latency_steps=(1, 3)),
     # Training data that looks more like the Udacity simulator's frames (issue 15; compared
     # against the real slices in ../shared/fixtures by `clonedrive crosscheck`): its roads
     # are darker or lighter grey with yellow, white or worn lines, its light brighter or

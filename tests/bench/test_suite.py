@@ -119,3 +119,20 @@ def test_the_expert_drives_a_whole_lap_from_any_start_in_either_direction(tmp_pa
     lake_m = results[0]["route_m"]
     assert all(r["distance_m"] >= lake_m for r in results)
     assert len({spec.reference_key for spec in specs}) == 4  # four references, not one
+
+
+def test_v3_has_at_least_24_episodes_a_split_a_harder_tier_and_a_dev_tier():
+    suite = load_suite("v3")
+    sizes = {split.name: split.size for split in suite.splits}
+    assert sizes.pop("dev") == 12
+    assert sizes and all(size >= 24 for size in sizes.values())
+    assert "hard-late" in sizes
+    episodes = suite.episodes()
+    assert {e.reverse for e in episodes} == {False, True}
+    assert len({e.start_fraction for e in episodes}) >= 3
+    late = [e for e in episodes if e.split == "hard-late"]
+    assert all(e.speed_mph == 30.0 and e.conditions.latency_steps >= 1 for e in late)
+    for name, family in suite.families.items():  # one definition of every family
+        assert family == FAMILIES[name], name
+    # v2 stays built in, unchanged, for comparison
+    assert len(load_suite("v2").episodes()) == 44

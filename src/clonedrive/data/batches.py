@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from clonedrive.data.augment import AugmentConfig, augment_batch
-from clonedrive.data.recipe import Samples
+from clonedrive.data.samples import Samples
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
 from clonedrive.images import ImageDecodeError
 from clonedrive.images import read_rgb as read_image_file

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.model.architectures import CROP_BOTTOM_PX, CROP_TOP_PX, build_model
+from clonedrive.drivers.crop import CROP_BOTTOM_PX, CROP_TOP_PX
+from clonedrive.model.architectures import build_model
 from clonedrive.model.saliency import VisualBackProp, _spread, overlay
 from clonedrive.udacity_spec import IMAGE_SHAPE
 

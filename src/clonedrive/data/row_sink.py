@@ -6,7 +6,7 @@ renames it into ``IMG/`` (:data:`TEMP_SUFFIX`), then appends the row to ``drivin
 (:mod:`clonedrive.data.log_writer`) and, for a labelled step, the expert's speed label to
 ``target_speed.csv`` (:mod:`clonedrive.data.speed_labels`) before it. A process killed at any
 moment leaves a log whose every row's images exist and decode. Used by ``record``
-(:mod:`clonedrive.data.recorder`), manual driving (:mod:`clonedrive.manual.session`) and DAgger.
+(:mod:`clonedrive.data.recorder`), manual driving (:mod:`clonedrive.manual.recording`) and DAgger.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ class RowSink:
     Image names follow ``start`` plus each observation's simulated ``time_s`` (see
     :func:`clonedrive.data.log_folder.prepare_log_folder` for a start that continues an
     existing log). Used by :func:`clonedrive.data.recorder.record` and by manual driving
-    (:mod:`clonedrive.manual.session`).
+    (:mod:`clonedrive.manual.recording`).
     """
 
     def __init__(self, out: Path, start: datetime, *, header: bool = False,

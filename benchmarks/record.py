@@ -57,7 +57,7 @@ def time_jpeg(folder: Path, repeats: int) -> float:
     import cv2
 
     from clonedrive.base.udacity_spec import JPEG_QUALITY
-    from clonedrive.data.recorder import _write_jpeg
+    from clonedrive.data.row_sink import write_jpeg
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     with Simulator("lake", SimConfig(cameras=("center",))) as sim:
@@ -66,7 +66,7 @@ def time_jpeg(folder: Path, repeats: int) -> float:
     params = [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY]
     start = time.perf_counter()
     for index in range(repeats):
-        _write_jpeg(image, folder / f"center_{index}.jpg", params)
+        write_jpeg(image, folder / f"center_{index}.jpg", params)
     return (time.perf_counter() - start) / repeats
 
 

@@ -154,11 +154,12 @@ def test_batches_shapes_flips_weights_and_order(tmp_path: Path) -> None:
 def test_a_cache_of_the_rows_training_reads_gives_the_same_batches(tmp_path: Path) -> None:
     """A cache keeping only the rows a cropping network and its augmentation read is less than
     half the size, and the batches' visible rows are the same to the bit."""
-    from clonedrive.model.train import TrainConfig, cached_rows
+    from clonedrive.data.dataset import cached_rows
+    from clonedrive.model.train import TrainConfig
 
     samples = expand(default_recipe_for([LAKE]))
     config = TrainConfig(crop_top_px=60)
-    rows = cached_rows(config)
+    rows = cached_rows(config.dataset_config())
     visible = (60, 160 - 25)
     assert rows[0] <= visible[0] - 6 and rows[1] >= visible[1] + 6
     whole = ImageCache(samples.unique_paths)

@@ -12,12 +12,12 @@ import pytest
 
 from clonedrive.data.driving_log import (
     CAMERAS,
-    DrivingLogWriter,
     LogRow,
     image_name,
     image_time,
     read_driving_log,
 )
+from clonedrive.data.log_writer import DrivingLogWriter
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 

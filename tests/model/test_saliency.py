@@ -11,7 +11,8 @@ import pytest
 
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
 from clonedrive.cli import main
-from clonedrive.model.architectures import CROP_BOTTOM_PX, CROP_TOP_PX, build_model
+from clonedrive.drivers.crop import CROP_BOTTOM_PX, CROP_TOP_PX
+from clonedrive.model.architectures import build_model
 from clonedrive.model.saliency import VisualBackProp, _spread, overlay
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"

@@ -15,7 +15,8 @@ import pytest
 from clonedrive.base.config import load_config
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
-from clonedrive.model.train import TrainConfig, _run_recorder_class, train
+from clonedrive.model.checkpoints import run_recorder_class
+from clonedrive.model.train import TrainConfig, train
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 OUTPUTS = {
@@ -129,11 +130,11 @@ def test_early_stopping_counts_epochs_since_the_best(tmp_path: Path) -> None:
     history = [
         {"epoch": 1, "val_loss": 0.5}, {"epoch": 2, "val_loss": 0.3}, {"epoch": 3, "val_loss": 0.4}
     ]
-    recorder = _run_recorder_class()(tmp_path, config, history, {})
+    recorder = run_recorder_class()(tmp_path, config, history, {})
     assert recorder.best_epoch() == (2, 0.3) and not recorder.should_stop()
     history.append({"epoch": 4, "val_loss": 0.35})
-    assert _run_recorder_class()(tmp_path, config, history, {}).should_stop()
-    assert not _run_recorder_class()(tmp_path, FAST, history, {}).should_stop()
+    assert run_recorder_class()(tmp_path, config, history, {}).should_stop()
+    assert not run_recorder_class()(tmp_path, FAST, history, {}).should_stop()
 
 
 @pytest.mark.slow

@@ -82,12 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clonedrive.data.recorder import (
-        RecordConfig,
-        RecordingFolderError,
-        RecordingWriteError,
-        record,
-    )
+    from clonedrive.data.log_folder import RecordingFolderError
+    from clonedrive.data.recorder import RecordConfig, record
+    from clonedrive.data.row_sink import RecordingWriteError
     from clonedrive.world.track import TrackError
 
     problem = renderer_error(args, "record")

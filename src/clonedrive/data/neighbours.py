@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from clonedrive.data.recipe import Samples
+from clonedrive.data.samples import Samples
 
 
 def next_frames(samples: Samples) -> np.ndarray:

@@ -27,9 +27,10 @@ Steering is in [-1, 1] (wheel angle / 25 deg, positive = right). A sample's labe
 flipped copy. Unknown keys anywhere are errors naming the key and the file.
 
 :func:`expand` reads every recording (through :mod:`clonedrive.data.driving_log`, the only
-CSV reader) and returns flat per-sample arrays (:class:`Samples`). A sample's speed label is
-the expert's target speed where the recording has one (``target_speed.csv``, see
-:mod:`clonedrive.data.speed_labels`), else the row's recorded speed.
+CSV reader) and returns flat per-sample arrays (:class:`~clonedrive.data.samples.Samples`).
+A sample's speed label is the expert's target speed where the recording has one
+(``target_speed.csv``, see :mod:`clonedrive.data.speed_labels`), else the row's recorded
+speed.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,6 +47,7 @@ import numpy as np
 from clonedrive.base.config import parse_toml
 from clonedrive.base.udacity_spec import CONTROL_HZ, STEERING_CORRECTION
 from clonedrive.data.driving_log import CAMERAS, image_time, read_driving_log
+from clonedrive.data.samples import Samples
 from clonedrive.data.speed_labels import label_or_recorded
 
 CAMERA_MODES = ("center", "all")
@@ -82,76 +84,6 @@ class Recipe:
 
     recordings: tuple[RecordingSpec, ...]
     source: str = "<recipe>"
-
-
-@dataclass
-class Samples:
-    """Flat per-sample arrays; sample ``i`` is camera ``CAMERAS[camera[i]]`` of CSV line
-    ``row[i]`` of recording ``recording_names[recording[i]]``, mirrored if ``flip[i]``.
-
-    ``image_paths`` index into ``unique_paths`` (``image_index``) so that a picture used by
-    several samples (a flipped copy) is decoded and cached once.
-    """
-
-    unique_paths: list[Path]  # every distinct image file
-    image_index: np.ndarray  # (n,) int64 index into unique_paths
-    camera: np.ndarray  # (n,) int8 index into CAMERAS
-    steering: np.ndarray  # (n,) float32 label, [-1, 1], after correction, offset and flip
-    flip: np.ndarray  # (n,) bool: mirror the image horizontally
-    recording: np.ndarray  # (n,) int32 index into recording_names
-    row: np.ndarray  # (n,) int64 1-based CSV line of the sample
-    time_s: np.ndarray  # (n,) float64 seconds since the recording's first row
-    weight: np.ndarray  # (n,) float32 loss weight
-    #: (n,) float32 the speed label [mph]: the expert's target speed where the log has one
-    #: (``target_speed.csv``), else the recorded speed (human and Udacity logs)
-    target_speed_mph: np.ndarray
-    recorded_speed_mph: np.ndarray  #: (n,) float32 the row's recorded speed [mph]
-    recording_names: tuple[str, ...]
-    skipped: dict[str, int]  # reason -> rows skipped by the log reader, all recordings
-    skipped_details: list[str]  # "recording: detail" for every skipped row
-    rows_read: int  # usable CSV rows over all recordings
-    side_images_missing: int = 0  # of those, rows with a side camera off (its image missing)
-    rows_with_target_speed: int = 0  # of those, rows with the expert's target speed
-
-    def __len__(self) -> int:
-        return int(self.steering.shape[0])
-
-    def image_path(self, index: int) -> Path:
-        return self.unique_paths[int(self.image_index[index])]
-
-    def subset(self, indices: np.ndarray) -> Samples:
-        """The samples at ``indices`` (the image table is shared, not copied)."""
-        indices = np.asarray(indices, dtype=np.int64)
-        return dataclasses.replace(
-            self,
-            image_index=self.image_index[indices],
-            camera=self.camera[indices],
-            steering=self.steering[indices],
-            flip=self.flip[indices],
-            recording=self.recording[indices],
-            row=self.row[indices],
-            time_s=self.time_s[indices],
-            weight=self.weight[indices],
-            target_speed_mph=self.target_speed_mph[indices],
-            recorded_speed_mph=self.recorded_speed_mph[indices],
-        )
-
-    def compact(self) -> Samples:
-        """The same samples with ``unique_paths`` cut down to the images they use."""
-        used, inverse = np.unique(self.image_index, return_inverse=True)
-        return dataclasses.replace(
-            self,
-            unique_paths=[self.unique_paths[int(index)] for index in used],
-            image_index=inverse.reshape(-1).astype(np.int64),
-        )
-
-    def drop_images(self, bad_images: Iterable[int]) -> tuple[Samples, int]:
-        """Drop samples whose image (index into ``unique_paths``) is in ``bad_images``;
-        returns the remaining samples and the number dropped."""
-        bad = np.zeros(len(self.unique_paths), dtype=bool)
-        bad[np.fromiter(bad_images, dtype=np.int64)] = True
-        keep = np.flatnonzero(~bad[self.image_index])
-        return self.subset(keep), len(self) - len(keep)
 
 
 # --- loading --------------------------------------------------------------------------------

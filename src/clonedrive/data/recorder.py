@@ -3,7 +3,8 @@
 ``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertDriver` around a
 track in the simulator with its three cameras and writes one row per control step (15 Hz) in
 exactly the Udacity simulator's format (UDACITY.md), through
-:class:`~clonedrive.data.driving_log.DrivingLogWriter`:
+:class:`~clonedrive.data.row_sink.RowSink` and its
+:class:`~clonedrive.data.log_writer.DrivingLogWriter`:
 
 - ``IMG/center_|left_|right_YYYY_MM_DD_HH_MM_SS_mmm.jpg``: 320x160 RGB JPEGs (quality 75 by
   default, as Unity's ``EncodeToJPG``). The timestamps follow **simulated** time from the
@@ -51,44 +52,24 @@ from __future__ import annotations
 
 import math
 import os
-import queue
-import threading
 import time
 from dataclasses import asdict, dataclass, field
-from datetime import datetime, timedelta
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 
-from clonedrive.base.config import JsonFileError, config_to_dict, read_json, write_json_atomic
-from clonedrive.base.output_files import clear_temporary, open_output, refuse_link
-from clonedrive.base.paths import check_output_folder, describe_os_error, with_filename
+from clonedrive.base.config import config_to_dict
+from clonedrive.base.paths import check_output_folder
 from clonedrive.base.udacity_spec import JPEG_QUALITY
-from clonedrive.data.driving_log import (
-    CAMERAS,
-    CSV_NAME,
-    IMAGE_FOLDER,
-    STEERING_HISTOGRAM_BINS,
-    DrivingLogWriter,
-    image_name,
-    image_time,
-    read_driving_log,
-)
+from clonedrive.data.driving_log import STEERING_HISTOGRAM_BINS
+from clonedrive.data.log_folder import check_start_time, prepare_log_folder, write_session_config
 from clonedrive.data.recording_lock import RecordingLock
-from clonedrive.data.speed_labels import LABELS_NAME, SpeedLabelWriter
+from clonedrive.data.row_sink import RowSink
 from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
 from clonedrive.episode.rules import EpisodeRules, Stop
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.world.vehicle import check_set_speed
-
-CONFIG_NAME = "config.json"
-#: Steps queued for the writer thread at most (bounds memory; each holds three images).
-MAX_PENDING_ROWS = 16
-#: Image names count on from the start in simulated time: a start after this would run past
-#: the last date Python can name (9999-12-31) within a recording (a year of driving).
-LATEST_START_TIME = datetime(9999, 1, 1)
-#: Suffix of an image being written (``IMG/.center_..._123.tmp.jpg``), renamed when complete.
-TEMP_SUFFIX = ".tmp.jpg"
 
 
 @dataclass(frozen=True)
@@ -306,231 +287,6 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
                             "counts": [int(c) for c in counts]},
         message=messages[stopped],
     )
-
-
-class RowSink:
-    """Writes rows in step order, each only after its three images are in place.
-
-    One background thread owns the images and the CSV: for each submitted step, in order, it
-    JPEG-encodes and writes the three images (temp name, then rename), then appends the row. The
-    main thread meanwhile renders the next frame (Panda3D and OpenCV release the GIL).
-    ``submit`` blocks when ``MAX_PENDING_ROWS`` steps are waiting; ``close`` writes the rest.
-    Image names follow ``start`` plus each observation's simulated ``time_s`` (see
-    :func:`prepare_log_folder` for a start that continues an existing log). Used by
-    :func:`record` and by manual driving (:mod:`clonedrive.manual.session`).
-    """
-
-    def __init__(self, out: Path, start: datetime, *, header: bool = False,
-                 relative_paths: bool = False, jpeg_quality: int = JPEG_QUALITY,
-                 fsync_every_rows: int = 15) -> None:
-        if not 1 <= jpeg_quality <= 100:
-            raise ValueError(f"jpeg_quality must be in [1, 100], got {jpeg_quality}")
-        if fsync_every_rows < 1:
-            raise ValueError("fsync_every_rows must be at least 1")
-        self.image_dir = out / IMAGE_FOLDER
-        self.start = start
-        self.jpeg_quality = int(jpeg_quality)
-        self.fsync_every_rows = int(fsync_every_rows)
-        self.writer = DrivingLogWriter(out, header=header, relative_paths=relative_paths,
-                                       fsync=False)
-        self._sync_fd = os.open(self.writer.csv_path, os.O_RDONLY)
-        self.labels: SpeedLabelWriter | None = None  # opened with the first labelled row
-        self._queue: queue.Queue = queue.Queue(maxsize=MAX_PENDING_ROWS)
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._work, name="record-writer", daemon=True)
-        self._thread.start()
-
-    @property
-    def rows_written(self) -> int:
-        return self.writer.rows_written
-
-    def submit(self, obs, steering: float, controls, *, target_speed_mph: float | None = None
-               ) -> tuple[str, str, str]:
-        """Queue one step's row: ``obs``'s three images and speed, the ``steering`` label and
-        the applied ``controls`` (throttle recorded clipped to >= 0, brake as applied), and
-        with ``target_speed_mph`` the expert's speed label (``target_speed.csv``, written
-        before the row). Returns the three image names."""
-        if self._error is not None:
-            raise RecordingWriteError(_write_failure(self._error)) from self._error
-        missing = [camera for camera in CAMERAS if camera not in obs.images]
-        if missing:
-            raise RuntimeError(f"the simulator rendered no {', '.join(missing)} image(s)")
-        names = tuple(image_name(camera, self.start, obs.time_s) for camera in CAMERAS)
-        images = tuple(obs.images[camera] for camera in CAMERAS)
-        values = (float(steering), max(controls.throttle, 0.0), controls.brake,
-                  max(obs.speed_mph, 0.0))
-        label = None if target_speed_mph is None else float(target_speed_mph)
-        self._queue.put((images, names, values, label))
-        return names
-
-    def _work(self) -> None:
-        import cv2
-
-        params = [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality]
-        while True:
-            item = self._queue.get()
-            if item is None:
-                return
-            if self._error is not None:
-                continue  # keep consuming so that submit never blocks forever
-            images, names, values, label = item
-            try:
-                paths = [self.image_dir / name for name in names]
-                for image, path in zip(images, paths, strict=True):
-                    _write_jpeg(image, path, params)
-                if label is not None:
-                    if self.labels is None:
-                        self.labels = SpeedLabelWriter(self.writer.folder)
-                    self.labels.append(names[0], label)
-                self.writer.append(*paths, *values)
-                if self.writer.rows_written % self.fsync_every_rows == 0:
-                    self._sync()
-            except BaseException as error:  # handed to the main thread by submit/close
-                self._error = error
-
-    def close(self) -> None:
-        """Write every queued row, then sync and close the CSV. Raises a writing error."""
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join()
-        if self._sync_fd >= 0:
-            self._sync()
-            os.close(self._sync_fd)
-            self._sync_fd = -1
-        self.writer.close()
-        if self.labels is not None:
-            self.labels.close()
-        if self._error is not None:
-            raise RecordingWriteError(_write_failure(self._error)) from self._error
-
-    def _sync(self) -> None:
-        if self.labels is not None:
-            os.fsync(self.labels.fileno())
-        try:
-            os.fsync(self._sync_fd)
-        except OSError as error:  # ENOSPC names no file: name the log
-            raise with_filename(error, self.writer.csv_path) from None
-
-    def __enter__(self) -> RowSink:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-
-def _write_jpeg(image_rgb: np.ndarray, path: Path, params: list[int]) -> None:
-    """Write an RGB image as a JPEG atomically: encode in memory, write a temp name, rename.
-    A full disk or a read-only folder raises ``OSError`` naming the file."""
-    import cv2
-
-    temp = path.with_name(f".{path.stem}{TEMP_SUFFIX}")
-    # OpenCV encodes BGR: the reversed channel view is copied by the binding, not re-encoded.
-    ok, encoded = cv2.imencode(".jpg", image_rgb[:, :, ::-1], params)
-    if not ok:
-        raise RuntimeError(f"OpenCV could not encode the image for {path}")
-    try:
-        with open_output(clear_temporary(temp), "wb") as handle:
-            handle.write(encoded.data)
-        os.replace(temp, path)
-    except OSError as error:  # named by the image the log refers to, not the temporary name
-        temp.unlink(missing_ok=True)
-        if error.errno is None:
-            raise
-        raise OSError(error.errno, error.strerror, str(path)) from None
-
-
-class RecordingFolderError(RuntimeError):
-    """The folder's log cannot be continued (its last image's time leaves no room); one line."""
-
-
-class RecordingWriteError(RuntimeError):
-    """Writing the recording failed (a full disk, a read-only folder...); every row written
-    before is whole. The message is one line naming the file."""
-
-
-def _write_failure(error: BaseException) -> str:
-    if isinstance(error, OSError):
-        return f"writing the log failed: {describe_os_error(error)}"
-    return f"writing the log failed: {error}"
-
-
-def prepare_log_folder(out: Path, start_time: str | None = None) -> tuple[int, datetime]:
-    """Get ``out`` ready for a new recording session: remove half-written temp images a killed
-    recorder left, and choose the first image's time (``start_time``, ISO, or now) so that it
-    follows the last image already logged there. Returns (rows already in the log, start).
-    A symbolic link at the name of a file the recording reads and writes is refused
-    (:class:`~clonedrive.base.output_files.RefusedOutputError`) before anything is written."""
-    for name in (CSV_NAME, LABELS_NAME, CONFIG_NAME, IMAGE_FOLDER):
-        refuse_link(out / name)
-    existing_rows, last_time = _existing_log(out)
-    _remove_temp_images(out)
-    return existing_rows, _start_time(start_time, last_time)
-
-
-def _existing_log(out: Path) -> tuple[int, datetime | None]:
-    """(rows already in ``out``'s log, the latest image time among them)."""
-    if not (out / CSV_NAME).is_file():
-        return 0, None
-    log = read_driving_log(out, verify_images="none")
-    times = [image_time(row.center) for row in log.rows]
-    times = [moment for moment in times if moment is not None]
-    return log.total_rows, max(times) if times else None
-
-
-def _start_time(start_time: str | None, last_time: datetime | None) -> datetime:
-    """The time of the first image: ``start_time`` or now (whole ms), and in any case after the
-    last image already in the folder."""
-    if start_time is not None:
-        start = datetime.fromisoformat(start_time).replace(tzinfo=None)
-    else:
-        start = datetime.now()
-    start = start.replace(microsecond=start.microsecond // 1000 * 1000)
-    if last_time is not None and last_time >= LATEST_START_TIME:
-        raise RecordingFolderError(
-            f"the log's last image is named for {last_time.isoformat()}: too late to record "
-            f"after it (image names must stay before {LATEST_START_TIME.date().isoformat()}); "
-            "record into another folder")
-    if last_time is not None:
-        start = max(start, last_time + timedelta(milliseconds=math.ceil(1000 / 15)))
-    return start
-
-
-def check_start_time(start: datetime) -> None:
-    """``ValueError`` unless a recording starting at ``start`` can name its images (see
-    :data:`LATEST_START_TIME`)."""
-    if start.replace(tzinfo=None) >= LATEST_START_TIME:
-        raise ValueError(f"start_time {start.isoformat()} is too late: a recording must start "
-                         f"before {LATEST_START_TIME.date().isoformat()} (its image names count "
-                         "on from it)")
-
-
-def _remove_temp_images(out: Path) -> None:
-    """Delete ``IMG/.*.tmp.jpg`` files a killed recorder left half-written."""
-    folder = out / IMAGE_FOLDER
-    if folder.is_dir():
-        for temp in folder.glob(f".*{TEMP_SUFFIX}"):
-            temp.unlink(missing_ok=True)
-
-
-def write_session_config(out: Path, config, track, version: str, session: dict) -> None:
-    """config.json: this recording's config (a dataclass), the track version, clonedrive version,
-    and every session recorded into the folder (``session`` replaces an earlier entry with the
-    same ``started``)."""
-    path = out / CONFIG_NAME
-    sessions: list = []
-    if path.is_file():
-        try:
-            previous = read_json(path, what="config file")
-        except JsonFileError:  # unreadable: start the list of sessions afresh
-            previous = {}
-        if isinstance(previous, dict) and isinstance(previous.get("sessions"), list):
-            sessions = [item for item in previous["sessions"]
-                        if item.get("started") != session["started"]]
-    data = config_to_dict(config)
-    data.update(track_name=track.name, track_version=track.version,
-                track_length_m=round(track.length_m, 1), clonedrive_version=version,
-                sessions=[*sessions, session])
-    write_json_atomic(path, data)
 
 
 def _progress_bar(laps: int, enabled: bool):

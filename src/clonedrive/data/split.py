@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from clonedrive.data.recipe import Samples
+from clonedrive.data.samples import Samples
 
 SPLIT_KINDS = ("random", "blocks", "recording")
 DEFAULT_BLOCK_S = 10.0

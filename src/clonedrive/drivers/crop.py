@@ -4,12 +4,20 @@ Every network of ours crops its 160x320 input with a ``Cropping2D`` first (the w
 crop keeps rows 80-135, ``--crop-top 60`` keeps 60-135). Training computes only those rows
 (data.augment), and the closed loop renders only those rows (sim.cameras) when nothing else
 needs the full frame. :func:`visible_rows` reads the crop from the model itself, so a policy
-tells the renderer what it needs.
+tells the renderer what it needs. The crop's default rows are defined here, once: the networks
+(model.architectures) and the rows training caches (data.dataset) both follow them.
 """
 
 from __future__ import annotations
 
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
+
+#: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels. With the
+#: Udacity camera (60 deg vertical field, pitched 9.4 deg down, 1.2 m up) row 80 looks at the
+#: road about 7 m ahead and the horizon is near row 55: the write-up's crop sees 2-7 m of road.
+#: A smaller ``crop_top_px`` (60: about 36 m) lets a speed head see a bend before it brakes.
+CROP_TOP_PX = 80
+CROP_BOTTOM_PX = 25
 
 #: Layers that may come before the crop: they act on each pixel alone, so cropping first or
 #: after gives the same values.

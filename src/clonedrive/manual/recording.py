@@ -1,7 +1,7 @@
 """What ``R`` does in a manual session: one recording's folder, lock, rows and ``config.json``.
 
 Recording writes the Udacity format (UDACITY.md) through
-:class:`~clonedrive.data.recorder.RowSink`, as ``clonedrive record`` does: one row per control
+:class:`~clonedrive.data.row_sink.RowSink`, as ``clonedrive record`` does: one row per control
 step, each image written (atomically) before its row, appended to an existing log with image
 times continuing after its last one, and a session entry in ``config.json``. A row holds the
 images taken at a step, the steering and throttle applied for that step (throttle clipped to
@@ -95,7 +95,8 @@ class SessionRecorder:
         """Start this recording's session in ``out_dir`` (its lock held) and open the sink."""
         from clonedrive import __version__
         from clonedrive.base.config import config_to_dict
-        from clonedrive.data.recorder import RowSink, prepare_log_folder, write_session_config
+        from clonedrive.data.log_folder import prepare_log_folder, write_session_config
+        from clonedrive.data.row_sink import RowSink
 
         existing_rows, start = prepare_log_folder(self.out_dir)
         # Image names are start + simulated time: the first row's image is named ``start``.
@@ -118,7 +119,7 @@ class SessionRecorder:
         (rows, the takeovers since the start), before this returns. Returns the rows this
         recording wrote (0 when none was running)."""
         from clonedrive import __version__
-        from clonedrive.data.recorder import write_session_config
+        from clonedrive.data.log_folder import write_session_config
 
         if self._sink is None:
             return 0

@@ -34,17 +34,12 @@ import numpy as np
 
 from clonedrive.base.keras_backend import import_keras
 from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
+from clonedrive.drivers.crop import CROP_BOTTOM_PX, CROP_TOP_PX
 from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
 
 keras = import_keras()
 layers = keras.layers
 
-#: Rows cut from the top (sky, trees) and bottom (bonnet) of the frame, in pixels. With the
-#: Udacity camera (60 deg vertical field, pitched 9.4 deg down, 1.2 m up) row 80 looks at the
-#: road about 7 m ahead and the horizon is near row 55: the write-up's crop sees 2-7 m of road.
-#: A smaller ``crop_top_px`` (60: about 36 m) lets a speed head see a bend before it brakes.
-CROP_TOP_PX = 80
-CROP_BOTTOM_PX = 25
 
 MODEL_NAMES = ("seed", "pilotnet", "fast")
 DATA_FORMATS = ("channels_first", "channels_last")
@@ -243,7 +238,7 @@ def build_model(name: str, **options) -> keras.Model:
     (float, 0 = off), ``data_format`` (``channels_first``, the default, or
     ``channels_last``; see the module doc), ``speed_head`` (bool, the second output
     ``target_speed``; see the module doc), ``crop_top_px`` (rows cut from the top, default
-    :data:`CROP_TOP_PX`) and, for ``seed`` only, ``l2``.
+    :data:`clonedrive.drivers.crop.CROP_TOP_PX`) and, for ``seed`` only, ``l2``.
     """
     try:
         builder = _BUILDERS[name]

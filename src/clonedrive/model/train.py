@@ -1,5 +1,8 @@
-"""Train a steering network on recordings: recipe -> samples -> balance -> split -> fit.
+"""Train a steering network on recordings: recipe -> data set -> fit, checkpoint, resume.
 
+The data set (samples, balancing, split, the decoded-image cache, ``dataset.json``'s report)
+is made by :func:`clonedrive.data.dataset.build_dataset` from :meth:`TrainConfig.dataset_config`;
+the per-epoch files and ``model.h5`` are written by :mod:`clonedrive.model.checkpoints`.
 ``train(config, source, out_dir)`` writes into ``out_dir``:
 
 - ``model.keras``  the model of the epoch with the lowest validation loss;
@@ -28,20 +31,17 @@ random state is set.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
 import os
 import sys
-import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from clonedrive.base.config import (
-    atomic_path,
     changed_settings,
     config_to_dict,
     load_config,
@@ -49,7 +49,8 @@ from clonedrive.base.config import (
     write_json_atomic,
     write_text_atomic,
 )
-from clonedrive.base.interrupts import raise_if_lost
+from clonedrive.data.balance import DEFAULT_BINS
+from clonedrive.data.dataset import Dataset, DatasetConfig, build_dataset, discard_cache
 from clonedrive.data.recipe import (
     CORRECTION_RANGE,
     DEFAULT_CORRECTION,
@@ -58,17 +59,12 @@ from clonedrive.data.recipe import (
     load_recipe,
     recipe_to_toml,
 )
-from clonedrive.drivers.crop import visible_rows
-from clonedrive.model.history import HISTORY_NAME, read_history, write_history
+from clonedrive.data.split import DEFAULT_BLOCK_S
+from clonedrive.drivers.crop import CROP_TOP_PX, visible_rows
+from clonedrive.model.checkpoints import export_h5, run_recorder_class
+from clonedrive.model.history import HISTORY_NAME, read_history
 
 logger = logging.getLogger(__name__)
-
-CACHE_MODES = ("auto", "memory", "memmap")
-#: With a speed head, balancing keeps every sample whose speed label is below this [mph]
-#: (the expert slowing for a bend), whatever its steering.
-SLOWING_LABEL_MPH = 28.5
-CACHE_FILE = "image_cache.u8"
-
 
 #: The largest learning rate training accepts: above it Adam only diverges.
 MAX_LEARNING_RATE = 1.0
@@ -89,10 +85,10 @@ class TrainConfig:
     epochs: int = 7  # total epochs, counting any done before a resume
     correction: float = DEFAULT_CORRECTION  # side-camera correction of a DIR-only recipe
     balance: bool = True  # the write-up's steering histogram balancing
-    balance_bins: int = 20
+    balance_bins: int = DEFAULT_BINS
     split: str = "random"  # random | blocks | recording (see data.split)
     val_fraction: float = 0.2
-    block_s: float = 10.0  # block length of the "blocks" split, seconds
+    block_s: float = DEFAULT_BLOCK_S  # block length of the "blocks" split, seconds
     augment: bool = True  # training-only augmentation (see data.augment)
     seed: int = 0
     early_stopping_patience: int | None = None  # stop after this many epochs without a best
@@ -106,16 +102,11 @@ class TrainConfig:
     speed_loss: str = "mse"  # or "censored": labels at the top speed are lower bounds
     speed_headroom: float = 1.0  # labels at the top speed rise up to this multiple of it
     init_from: str | None = None  # start from this model's weights (layers matched by name)
-    crop_top_px: int = 80  # rows the model cuts from the top (model.architectures.CROP_TOP_PX)
+    crop_top_px: int = CROP_TOP_PX  # rows the model cuts from the top (drivers.crop)
     consistency: float = 0.0  # weight of the next-frame consistency penalty (model.consistency)
 
     def __post_init__(self) -> None:
-        from clonedrive.data.split import SPLIT_KINDS
-
-        if self.split not in SPLIT_KINDS:
-            raise ValueError(f"split {self.split!r}; expected one of: {', '.join(SPLIT_KINDS)}")
-        if self.cache not in CACHE_MODES:
-            raise ValueError(f"cache {self.cache!r}; expected one of: {', '.join(CACHE_MODES)}")
+        self.dataset_config()  # checks split and cache
         if self.batch_size < 1 or self.epochs < 1:
             raise ValueError("batch_size and epochs must be >= 1")
         low, high = CORRECTION_RANGE
@@ -149,6 +140,11 @@ class TrainConfig:
             raise ValueError(f"consistency must be >= 0, got {self.consistency}")
         if self.consistency and self.loss != "mse":
             raise ValueError(f"consistency adds to the mse loss, not to {self.loss!r}")
+
+    def dataset_config(self) -> DatasetConfig:
+        """The settings that make the data set (data.dataset)."""
+        return DatasetConfig(**{setting.name: getattr(self, setting.name)
+                                for setting in dataclasses.fields(DatasetConfig)})
 
 
 @dataclass(frozen=True)
@@ -197,14 +193,6 @@ def train(
     that made it (:func:`clonedrive.drivers.driving_settings.notes_for`); a resumed run keeps
     its ``last.keras``'s notes when given none.
     """
-    from clonedrive.base.keras_backend import import_keras
-
-    keras = import_keras()
-
-    from clonedrive.data.augment import AugmentConfig
-    from clonedrive.data.batches import DrivingBatches
-    from clonedrive.model.architectures import build_model
-
     out = Path(out_dir)
     recipe = resolve_source(source, config.correction)
     state = _prepare_run_folder(out, config, recipe, resume)
@@ -215,41 +203,16 @@ def train(
     save_config(config, out / "config.json")
     write_text_atomic(out / "recipe.toml", recipe_to_toml(recipe))
 
-    data = None
+    data: Dataset | None = None
     try:
-        data = _prepare_data(config, recipe, out, progress=progress)
+        data = build_dataset(recipe, config.dataset_config(), out, progress=progress)
         write_json_atomic(out / "dataset.json", data.report)
         _print(progress, data.summary)
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
-        if epochs_done > 0:
-            from clonedrive.drivers.model_file import check_keras_file
-            from clonedrive.model import consistency, losses
-
-            check_keras_file(out / "last.keras")  # bounded before Keras allocates
-            model = keras.saving.load_model(
-                out / "last.keras", safe_mode=True,
-                custom_objects={**losses.CUSTOM_OBJECTS, **consistency.CUSTOM_OBJECTS})
-            _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
-        else:
-            model = build_model(config.model, seed=config.seed, dropout=config.dropout,
-                                speed_head=config.speed_head, crop_top_px=config.crop_top_px)
-            if config.init_from is not None:
-                copied = load_initial_weights(model, config.init_from)
-                _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")
-            _compile(keras, model, config)
-        train_batches = DrivingBatches(
-            data.train, data.cache, batch_size=config.batch_size, shuffle=True,
-            augment=AugmentConfig() if config.augment else None, seed=config.seed,
-            epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
-            # Augment only the rows the network keeps after its crop (same pixels, less work).
-            rows=visible_rows(model), partners=_partners(config, data.train),
-        )
-        val_batches = DrivingBatches(
-            data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
-            speed_head=config.speed_head, partners=_partners(config, data.val),
-        )
-        recorder = _run_recorder_class()(out, config, history, state, notes)
+        model = _model(config, out, epochs_done, progress)
+        train_batches, val_batches = _batches(config, data, model, epochs_done)
+        recorder = run_recorder_class()(out, config, history, state, notes)
         if epochs_done < config.epochs and not recorder.should_stop():
             model.fit(
                 train_batches,
@@ -262,9 +225,8 @@ def train(
             )
     finally:
         if data is not None:
-            data.cache.close(delete=True)
-        # Interrupted while the cache was being made: its file goes too.
-        (out / CACHE_FILE).unlink(missing_ok=True)
+            data.close()
+        discard_cache(out)  # interrupted while the data set was being made: its cache goes too
 
     if config.export_h5 and (out / "model.keras").is_file():
         export_h5(out / "model.keras", out / "model.h5", notes=notes)
@@ -279,6 +241,53 @@ def train(
         history=list(recorder.history),
         dataset=data.report,
     )
+
+
+def _model(config: TrainConfig, out: Path, epochs_done: int, progress: bool):
+    """The compiled model to fit: ``last.keras`` after ``epochs_done`` completed epochs (a
+    resume), else a new ``config.model`` (with ``init_from``'s weights when given)."""
+    from clonedrive.base.keras_backend import import_keras
+
+    keras = import_keras()
+    if epochs_done > 0:
+        from clonedrive.drivers.model_file import check_keras_file
+        from clonedrive.model import consistency, losses
+
+        check_keras_file(out / "last.keras")  # bounded before Keras allocates
+        model = keras.saving.load_model(
+            out / "last.keras", safe_mode=True,
+            custom_objects={**losses.CUSTOM_OBJECTS, **consistency.CUSTOM_OBJECTS})
+        _print(progress, f"resuming after epoch {epochs_done} from {out / 'last.keras'}")
+        return model
+    from clonedrive.model.architectures import build_model
+
+    model = build_model(config.model, seed=config.seed, dropout=config.dropout,
+                        speed_head=config.speed_head, crop_top_px=config.crop_top_px)
+    if config.init_from is not None:
+        copied = load_initial_weights(model, config.init_from)
+        _print(progress, f"initial weights of {copied} layer(s) from {config.init_from}")
+    _compile(keras, model, config)
+    return model
+
+
+def _batches(config: TrainConfig, data: Dataset, model, epochs_done: int):
+    """(training batches, shuffled and augmented as epoch ``epochs_done + 1`` draws them;
+    validation batches)."""
+    from clonedrive.data.augment import AugmentConfig
+    from clonedrive.data.batches import DrivingBatches
+
+    train_batches = DrivingBatches(
+        data.train, data.cache, batch_size=config.batch_size, shuffle=True,
+        augment=AugmentConfig() if config.augment else None, seed=config.seed,
+        epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
+        # Augment only the rows the network keeps after its crop (same pixels, less work).
+        rows=visible_rows(model), partners=_partners(config, data.train),
+    )
+    val_batches = DrivingBatches(
+        data.val, data.cache, batch_size=config.batch_size, workers=config.workers,
+        speed_head=config.speed_head, partners=_partners(config, data.val),
+    )
+    return train_batches, val_batches
 
 
 def _partners(config: TrainConfig, samples):
@@ -339,29 +348,6 @@ def load_initial_weights(model, path: str | os.PathLike) -> int:
     return copied
 
 
-def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
-              notes: dict | None = None) -> Path:
-    """Save the model at ``keras_path`` in the legacy HDF5 format (atomically), with ``notes``
-    (drivers.driving_settings) when given. A model with a speed head is saved with its
-    steering output only: Udacity's drive.py expects one output."""
-    from clonedrive.base.keras_backend import import_keras
-
-    keras = import_keras()
-
-    h5_path = Path(h5_path)
-    model = keras.saving.load_model(keras_path, safe_mode=True, compile=False)
-    if len(model.outputs) > 1:
-        model = keras.Model(model.inputs, model.outputs[0], name=model.name)
-    logging.getLogger("absl").setLevel(logging.ERROR)  # "HDF5 is legacy": we know
-    with atomic_path(h5_path) as temporary:
-        model.save(temporary)
-        if notes:
-            from clonedrive.drivers.driving_settings import write_notes
-
-            write_notes(temporary, notes)
-    return h5_path
-
-
 def load_run_config(out_dir: str | os.PathLike) -> TrainConfig:
     """The TrainConfig a run folder was trained with."""
     return load_config(TrainConfig, Path(out_dir) / "config.json")
@@ -402,324 +388,6 @@ def _prepare_run_folder(out: Path, config: TrainConfig, recipe: Recipe, resume: 
 def _print(enabled: bool, text: str) -> None:
     if enabled:
         print(text, flush=True)
-
-
-# --- data ---------------------------------------------------------------------------------
-
-
-@dataclass
-class _PreparedData:
-    train: object  # Samples
-    val: object  # Samples
-    cache: object  # ImageCache
-    report: dict
-    summary: str
-
-
-def _prepare_data(config: TrainConfig, recipe: Recipe, out: Path, *, progress: bool
-                  ) -> _PreparedData:
-    """expand -> speed-label headroom -> balance -> split -> decode the used images once
-    (unusable ones skipped)."""
-    from clonedrive.data.balance import save_balance_plots
-    from clonedrive.data.recipe import expand
-    from clonedrive.data.split import split_samples
-
-    samples = expand(recipe)
-    if len(samples) == 0:
-        raise ValueError(
-            f"no usable samples in {', '.join(str(spec.path) for spec in recipe.recordings)}"
-            + (f" (skipped rows: {samples.skipped})" if samples.skipped else "")
-        )
-    lines = [
-        f"{len(recipe.recordings)} recording(s), {samples.rows_read} usable rows, "
-        f"{len(samples)} samples"
-    ]
-    if samples.skipped:
-        lines.append(f"skipped rows: {_counts_text(samples.skipped)}")
-    if samples.side_images_missing:
-        lines.append(f"{samples.side_images_missing} rows lack a side image: they train with "
-                     "the cameras they have")
-    if config.speed_head:
-        lines.append(
-            f"speed labels: the expert's target speed on {samples.rows_with_target_speed} rows, "
-            f"the recorded speed on {samples.rows_read - samples.rows_with_target_speed}")
-
-    # Headroom first: the profile is counted back along whole recordings, before balancing
-    # drops any of their samples.
-    raised = 0
-    if config.speed_head and config.speed_headroom != 1.0:
-        from clonedrive.data.speed_labels import with_headroom
-
-        labels, raised = with_headroom(samples.target_speed_mph, samples.recording, samples.row,
-                                       samples.time_s, samples.recorded_speed_mph,
-                                       config.speed_headroom)
-        samples = replace(samples, target_speed_mph=labels)
-        lines.append(f"speed head: {raised} labels at the top speed continue the expert's "
-                     f"braking profile up to {config.speed_headroom:g}x it (headroom, before "
-                     "balancing)")
-
-    samples, balanced, kept_for_speed = _balance(config, samples, lines)
-    save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
-    split = split_samples(
-        samples, config.split, np.random.default_rng([config.seed, 2]),
-        val_fraction=config.val_fraction, block_s=config.block_s,
-    )
-    lines.append(split.description)
-
-    samples = samples.compact()
-    cache = _open_cache(config, samples, out)
-    lines.append(
-        f"image cache: {len(cache)} images, rows {cache.rows[0]}-{cache.rows[1] - 1} of each, "
-        f"{cache.nbytes / 1e6:.0f} MB "
-        + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
-    )
-    try:
-        failed = cache.fill(workers=2, progress=progress)
-    except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: no cache left behind
-        cache.close(delete=True)
-        raise
-    bad_images: dict[str, int] = {}
-    for error in failed.values():
-        bad_images[error.reason] = bad_images.get(error.reason, 0) + 1
-    train_samples, dropped_train = samples.subset(split.train).drop_images(failed)
-    val_samples, dropped_val = samples.subset(split.val).drop_images(failed)
-    if failed:
-        lines.append(
-            f"skipped images: {_counts_text(bad_images)} ({dropped_train + dropped_val} samples)"
-        )
-        for error in list(failed.values())[:5]:
-            logger.warning("skipped image: %s", error)
-    if len(train_samples) == 0 or len(val_samples) == 0:
-        cache.close(delete=True)
-        raise ValueError(
-            f"after skipping unusable images, {len(train_samples)} training and "
-            f"{len(val_samples)} validation samples remain; need at least one of each"
-        )
-
-    report = {
-        "recordings": [
-            {"name": spec.name, "path": str(spec.path), "cameras": spec.cameras,
-             "correction": spec.correction, "steering_offset": spec.steering_offset,
-             "flip": spec.flip, "weight": spec.weight}
-            for spec in recipe.recordings
-        ],
-        "rows_read": samples.rows_read,
-        "side_images_missing": samples.side_images_missing,
-        "rows_with_target_speed": samples.rows_with_target_speed,
-        "skipped_rows": samples.skipped,
-        "skipped_row_details": samples.skipped_details[:100],
-        "samples_before_balance": int(balanced.counts_before.sum()),
-        "samples_after_balance": int(balanced.counts_after.sum()) + kept_for_speed,
-        "speed_samples_kept": kept_for_speed,
-        "speed_labels_raised": raised,  # labels at the top speed trained with headroom
-        "balance": {
-            "enabled": config.balance,
-            "bin_edges": [round(float(edge), 6) for edge in balanced.bin_edges],
-            "counts_before": balanced.counts_before.tolist(),
-            "counts_after": balanced.counts_after.tolist(),
-            "target_per_bin": balanced.target,
-        },
-        "split": {"kind": split.kind, "description": split.description,
-                  "val_fraction": config.val_fraction,
-                  "block_s": config.block_s if split.kind == "blocks" else None},
-        "skipped_images": bad_images,
-        "skipped_image_samples": dropped_train + dropped_val,
-        "train_samples": len(train_samples),
-        "val_samples": len(val_samples),
-        "images_cached": len(cache),
-    }
-    lines.append(f"training on {len(train_samples)} samples, validating on {len(val_samples)}")
-    return _PreparedData(train_samples, val_samples, cache, report, "\n".join(lines))
-
-
-def _balance(config: TrainConfig, samples, lines: list[str]):
-    """(the samples kept, the balancing result for the histograms, samples kept back for the
-    speed head), the steps said in ``lines``."""
-    from clonedrive.data.balance import balance_steering
-
-    balanced = balance_steering(samples.steering, np.random.default_rng([config.seed, 1]),
-                                bins=config.balance_bins)
-    if not config.balance:
-        lines.append(f"balancing off: {len(samples)} samples")
-        return samples, _unbalanced(balanced), 0
-    keep, kept_for_speed = balanced.keep, 0
-    if config.speed_head:
-        # Steering balancing thins out the straight-ahead samples, and with them the braking
-        # zones before bends: the samples the speed head learns slowing from.
-        slowing = np.flatnonzero(samples.target_speed_mph < SLOWING_LABEL_MPH)
-        keep = np.union1d(keep, slowing)
-        kept_for_speed = len(keep) - len(balanced.keep)
-        lines.append(f"speed head: {kept_for_speed} samples where the "
-                     f"expert slows below {SLOWING_LABEL_MPH:g} mph kept back")
-    lines.append(balanced.summary())
-    return samples.subset(keep), balanced, kept_for_speed
-
-
-def _open_cache(config: TrainConfig, samples, out: Path):
-    """The decoded-image cache ``config.cache`` asks for (memory, a memmap in ``out``, or
-    memory up to the limit and a memmap above it), holding only the rows the network and its
-    augmentation read (:func:`cached_rows`)."""
-    from clonedrive.data.batches import ImageCache
-
-    rows = cached_rows(config)
-    if config.cache == "memory":
-        return ImageCache(samples.unique_paths, rows=rows)
-    if config.cache == "memmap":
-        return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
-                          memory_limit_bytes=0, rows=rows)
-    return ImageCache(samples.unique_paths, memmap_path=out / CACHE_FILE,
-                      memory_limit_bytes=config.cache_memory_limit_mb * 1024**2, rows=rows)
-
-
-def cached_rows(config: TrainConfig) -> tuple[int, int]:
-    """The frame rows training reads: the network's crop, widened by augmentation's largest
-    vertical shift (a shifted picture's visible rows come from up to that far away)."""
-    from clonedrive.base.udacity_spec import IMAGE_HEIGHT
-    from clonedrive.data.augment import AugmentConfig
-    from clonedrive.model.architectures import CROP_BOTTOM_PX
-
-    margin = AugmentConfig().vertical_shift_max_px if config.augment else 0
-    return (max(0, config.crop_top_px - margin),
-            min(IMAGE_HEIGHT, IMAGE_HEIGHT - CROP_BOTTOM_PX + margin))
-
-
-def _unbalanced(result):
-    """A BalanceResult that keeps everything (balancing off), for the histograms."""
-    import dataclasses
-
-    return dataclasses.replace(
-        result,
-        keep=np.arange(int(result.counts_before.sum())),
-        counts_after=result.counts_before.copy(),
-        keep_probability=np.ones_like(result.keep_probability),
-    )
-
-
-def _counts_text(counts: dict[str, int]) -> str:
-    return ", ".join(f"{count} {reason}" for reason, count in counts.items())
-
-
-# --- per-epoch bookkeeping ------------------------------------------------------------------
-
-
-def _run_recorder_class():
-    """The Keras callback class that records a run (built on first use: keras is heavy)."""
-    from clonedrive.base.keras_backend import import_keras
-
-    keras = import_keras()
-
-    class RunRecorder(keras.callbacks.Callback):
-        """After every epoch: last.keras, model.keras if best, history.csv, loss.png, state.json
-        (in that order, each atomically); early stopping from the whole history."""
-
-        def __init__(self, out: Path, config: TrainConfig, history: list[dict], state: dict,
-                     notes: dict | None = None):
-            super().__init__()
-            self.out = out
-            self.notes = notes
-            self.config = config
-            self.history = list(history)
-            self.state = dict(state)
-            self.stopped_early = False
-            self._epoch_started = time.perf_counter()
-
-        def best_epoch(self) -> tuple[int, float]:
-            if not self.history:
-                return 0, math.nan
-            best = min(self.history, key=lambda row: row["val_loss"])
-            return int(best["epoch"]), float(best["val_loss"])
-
-        def should_stop(self) -> bool:
-            patience = self.config.early_stopping_patience
-            if patience is None or not self.history:
-                return False
-            return len(self.history) - self.best_epoch()[0] >= patience
-
-        def on_epoch_begin(self, epoch, logs=None):
-            self._epoch_started = time.perf_counter()
-
-        def on_train_batch_end(self, batch, logs=None):
-            raise_if_lost()  # a SIGTERM whose exception a destructor swallowed ends here
-
-        def on_test_batch_end(self, batch, logs=None):
-            raise_if_lost()
-
-        def on_epoch_end(self, epoch, logs=None):
-            logs = logs or {}
-            row = {
-                "epoch": epoch + 1,
-                "loss": float(logs.get("loss", math.nan)),
-                "val_loss": float(logs.get("val_loss", math.nan)),
-                "mse": float(logs.get("mse", logs.get("steering_mse", math.nan))),
-                "val_mse": float(logs.get("val_mse", logs.get("val_steering_mse", math.nan))),
-                "seconds": round(time.perf_counter() - self._epoch_started, 3),
-            }
-            if self.config.speed_head:
-                row["speed_mse"] = float(logs.get("target_speed_mse", math.nan))
-                row["val_speed_mse"] = float(logs.get("val_target_speed_mse", math.nan))
-            previous_best = self.best_epoch()[1] if self.history else math.inf
-            self.history.append(row)
-            _save_model_atomic(self.model, self.out / "last.keras", self.notes)
-            if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
-                _save_model_atomic(self.model, self.out / "model.keras", self.notes)
-            write_history(self.out / HISTORY_NAME, self.history)
-            plot_loss(self.history, self.out / "loss.png",
-                      consistency=bool(self.config.consistency))
-            best_epoch, best_loss = self.best_epoch()
-            self.state = {"epochs_done": epoch + 1, "best_epoch": best_epoch,
-                          "best_val_loss": best_loss}
-            write_json_atomic(self.out / "state.json", self.state)
-            if self.should_stop():
-                self.stopped_early = True
-                self.model.stop_training = True
-                print(
-                    f"early stopping: no better validation loss for "
-                    f"{self.config.early_stopping_patience} epoch(s); best epoch {best_epoch}",
-                    flush=True,
-                )
-
-    return RunRecorder
-
-def _save_model_atomic(model, path: Path, notes: dict | None = None) -> None:
-    with atomic_path(path) as temporary:
-        model.save(temporary)
-        if notes:
-            from clonedrive.drivers.driving_settings import write_notes
-
-            write_notes(temporary, notes)
-
-
-def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool = False
-              ) -> Path:
-    """Training and validation loss per epoch as a PNG (matplotlib Agg), atomically; the axis
-    names what the loss holds (``consistency``: the run trained with that penalty)."""
-    import textwrap
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import MaxNLocator
-
-    path = Path(path)
-    epochs = [row["epoch"] for row in history]
-    figure = Figure(figsize=(7, 4), dpi=100)
-    axes = figure.add_subplot()
-    axes.plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
-    axes.plot(epochs, [row["val_loss"] for row in history], "s-", label="validation loss")
-    axes.set_xlabel("epoch")
-    speed = bool(history) and "speed_mse" in history[0]
-    terms = ["steering MSE"] + (["consistency"] if consistency else []) + (
-        ["speed MSE", "L2"] if speed else ["any L2 penalty"])
-    axes.set_ylabel(textwrap.fill(f"loss ({' + '.join(terms)})", 40))  # fits the axis
-    axes.set_title("training and validation loss")
-    axes.xaxis.set_major_locator(MaxNLocator(integer=True))
-    axes.grid(True, alpha=0.3)
-    axes.legend()
-    figure.tight_layout()
-    with atomic_path(path) as temporary:
-        figure.savefig(temporary, format="png")
-    return path
 
 
 def _keras_verbosity(progress: bool) -> int:

@@ -3,7 +3,7 @@ examples, video stills and the frames the car saw when it left the road.
 
 Every function takes uint8 RGB frames and labels, writes one PNG atomically (temp file +
 rename) and returns its path. Track maps live in :mod:`clonedrive.evaluate.maps`, the loss curve
-and steering histograms beside the code that makes them (``model.train.plot_loss``,
+and steering histograms beside the code that makes them (``model.checkpoints.plot_loss``,
 ``data.balance.plot_histogram``).
 """
 

@@ -22,7 +22,8 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     labelling every step, and write each track's recording under ``out/<track>/``. Returns
     the collection's figures (also written as ``out/collect.json``)."""
     from clonedrive.base.paths import safe_stem
-    from clonedrive.data.recorder import RowSink, prepare_log_folder
+    from clonedrive.data.log_folder import prepare_log_folder
+    from clonedrive.data.row_sink import RowSink
     from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
     from clonedrive.episode.drivers import ExpertCar
     from clonedrive.episode.rules import EpisodeRules

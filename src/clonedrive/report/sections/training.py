@@ -91,7 +91,7 @@ def build(ctx: ReportContext) -> list[Section]:
     if loss_png is not None:
         figure_path = copy_figure(loss_png, ctx.figures_dir, "loss.png")
     elif history:
-        from clonedrive.model.train import plot_loss
+        from clonedrive.model.checkpoints import plot_loss
 
         figure_path = plot_loss(history, ctx.figures_dir / "loss.png",
                                 consistency=bool((settings or {}).get("consistency")))

@@ -123,7 +123,7 @@ def workers_loop_steps_per_s(model_path: str, batch: int, seconds: float,
     """``clonedrive evaluate MODEL`` as a user runs it: the runs cut into groups driven in
     ``workers`` worker processes that load the model themselves (process start, imports and
     scene builds included, as in every evaluation)."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     speeds = tuple(20.0 + 0.5 * i for i in range(batch))
@@ -257,7 +257,7 @@ def server_round_trip_ms() -> tuple[float, float]:
     """The drive server's round trip with the ``seed`` model: (median, p99) [ms], printed."""
     from server_latency import round_trips, sample_jpeg
 
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.model.architectures import build_model
     from clonedrive.udacity import protocol
     from clonedrive.udacity.server import DriveServer
@@ -282,8 +282,9 @@ def server_round_trip_ms() -> tuple[float, float]:
 def main() -> None:
     import numpy as np
 
-    from clonedrive.drivers.network import NetworkPolicy, load_model
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.model.architectures import build_model
+    from clonedrive.network.model_file import load_model
     from clonedrive.udacity_spec import IMAGE_SHAPE
     from clonedrive.workers import default_workers
 
@@ -307,7 +308,7 @@ def main() -> None:
     workers_pairs = workers_pairs_steps_per_s(model, workers)
     on_workers, render_workers = _median_pair(workers_pairs)
     # The same loop with the network run by ONNX Runtime (evaluate --runtime onnx).
-    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+    from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
     onnx_policy = NetworkPolicy(OnnxModel(onnx_bytes(model)), set_speed_mph=20.0)
     onnx_policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))

@@ -57,7 +57,7 @@ def benchmark_tracks() -> list[str]:
 def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -> np.ndarray:
     """The policy's steering low-pass (:class:`SteeringFilter`, no hold) run forward, then
     backward over the result: the same smoothing with no delay."""
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     def run(series: np.ndarray) -> np.ndarray:
         low_pass = SteeringFilter(time_constant_s, control_hz=hz)
@@ -128,7 +128,7 @@ def main() -> int:
     args = parser.parse_args()
     from tqdm import tqdm
 
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     policy = load_policy(args.model, mirror_average=args.mirror_average)
     tracks = args.tracks or benchmark_tracks()

@@ -15,7 +15,7 @@ from clonedrive.dagger import DaggerConfig, MixedDriver, format_table, record_pl
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
-from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner
 from clonedrive.model.train import TrainConfig, train
@@ -174,7 +174,7 @@ def test_collection_records_whole_frames_whatever_the_network_crops(tmp_path: Pa
     """Collected frames are training data: they are rendered whole even for a policy that
     looks at a strip (a recipe may crop differently, and augmentation shifts rows)."""
     from clonedrive.dagger import collect
-    from clonedrive.drivers.tiny_model import build_road_follower
+    from clonedrive.network.tiny_model import build_road_follower
 
     policy = NetworkPolicy(build_road_follower(), set_speed_mph=15.0)
     assert policy.visible_rows is not None  # it looks at a strip only

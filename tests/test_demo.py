@@ -86,7 +86,7 @@ def test_a_model_of_another_recipe_is_refused(tmp_path, tiny_model_path):
     import shutil
 
     from clonedrive.demo import DemoFolderError, _check_same_recipe
-    from clonedrive.drivers.driving_settings import DrivingSettings, notes_for, write_notes
+    from clonedrive.network.driving_settings import DrivingSettings, notes_for, write_notes
     from clonedrive.recipes.book import load_recipe_file
 
     train_dir = tmp_path / "train"

@@ -375,7 +375,7 @@ def retrain(base_config, recipe, init_from: Path, epochs: int, learning_rate: fl
         return out / "model.keras"
     config = dataclasses.replace(base_config, epochs=epochs, learning_rate=learning_rate,
                                  init_from=str(init_from), export_h5=False, seed=seed)
-    from clonedrive.drivers.driving_settings import read_notes
+    from clonedrive.network.driving_settings import read_notes
 
     # The new model is driven as the one it starts from (its file's settings and recipe).
     notes = read_notes(init_from) or None
@@ -389,7 +389,7 @@ def evaluate_model(model_path: Path, config: DaggerConfig, out: Path, references
     reused when the folder holds a finished run."""
     import json
 
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     if config.bench_splits:
@@ -485,7 +485,7 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
     """DAgger from the training run folder ``base_run`` into ``out_dir`` (see the module doc).
     Returns what ``dagger.json`` holds."""
     from clonedrive.data.recipe import load_recipe
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.model.train import load_run_config
     from clonedrive.paths import check_output_folder
 

@@ -4,8 +4,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.trace import autonomy_pct, smoothness
 from clonedrive.evaluate.rollout import (
     EvalConfig,
@@ -14,6 +13,7 @@ from clonedrive.evaluate.rollout import (
     hud_frame,
     run_specs,
 )
+from clonedrive.network.tiny_model import build_tiny_model
 
 LAKE_JSON = resources.files("clonedrive.world") / "tracks" / "lake.json"
 

@@ -8,7 +8,7 @@ from importlib import resources
 import pytest
 
 from clonedrive.demo import DemoConfig, demo_plan
-from clonedrive.drivers.driving_settings import DrivingSettings
+from clonedrive.network.driving_settings import DrivingSettings
 from clonedrive.recipes.book import (
     BUILT_IN,
     DEFAULT_RECIPE,

@@ -19,7 +19,7 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, ConnectionClosedError, InvalidStatus
 
-from clonedrive.drivers.network import NetworkPolicy, load_policy
+from clonedrive.drivers.policy import NetworkPolicy, load_policy
 from clonedrive.images import read_rgb
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer

@@ -109,7 +109,7 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     """``portable``: the model's checked traces (NetworkPolicy.portable), run by PyTorch alone
     instead of loading the model file with Keras; the same steering to the last bit. Frames
     are drawn by ``renderer``; only the rows the model's crop keeps unless ``full_frame``."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.episode.drivers import NetworkDriver
     from clonedrive.keras_backend import compute_threads
 

@@ -55,8 +55,9 @@ def _combine(args: argparse.Namespace, out) -> int:
     import numpy as np
 
     from clonedrive.config import atomic_path
-    from clonedrive.drivers.driving_settings import copy_notes
-    from clonedrive.drivers.network import has_speed_head, load_model
+    from clonedrive.network.contract import has_speed_head
+    from clonedrive.network.driving_settings import copy_notes
+    from clonedrive.network.model_file import load_model
     from clonedrive.udacity_spec import IMAGE_SHAPE
 
     try:

@@ -24,10 +24,10 @@ import numpy as np
 
 from clonedrive.data.augment import AugmentConfig, augment_batch
 from clonedrive.data.recipe import Samples
-from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
 from clonedrive.images import ImageDecodeError
 from clonedrive.images import read_rgb as read_image_file
 from clonedrive.keras_backend import import_keras
+from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
 from clonedrive.paths import with_filename
 from clonedrive.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from clonedrive.drivers.expert import ExpertDriver
-from clonedrive.drivers.network import NetworkPolicy, SpeedController
+from clonedrive.drivers.policy import NetworkPolicy, SpeedController
 from clonedrive.episode.runner import Decision
 from clonedrive.sim.simulator import Controls, SimObservation
 
@@ -36,7 +36,7 @@ class ExpertCar:
 
 
 class NetworkDriver:
-    """A :class:`~clonedrive.drivers.network.NetworkPolicy` driving N cars: one batched
+    """A :class:`~clonedrive.drivers.policy.NetworkPolicy` driving N cars: one batched
     prediction for all their center frames per step, and a PI speed controller per car holding
     that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed
     capped by it, with the policy's ``slow_in_curves`` lower in bends).

@@ -11,7 +11,7 @@ network saw is saved, and the car is put back on the centreline heading along th
 speed (an intervention); a run stops when its laps have been driven or its time limit passes.
 
 A run without video renders only the rows the network's crop keeps (``render_rows``, from the
-model: :mod:`clonedrive.drivers.crop`; ``full_frame`` turns it off); the rest of each frame is
+model: :mod:`clonedrive.network.crop`; ``full_frame`` turns it off); the rest of each frame is
 a constant, also in its off-road frames. A run with video renders whole frames. eval.json
 records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
 
@@ -159,7 +159,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     and are all scheduled on one pool, so no worker waits for a part to finish.
 
     With several workers (``config.workers``, default one per CPU core) and the model's file
-    (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.network.load_policy`'s
+    (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.policy.load_policy`'s
     ``trust`` and ``runtime``), each part's runs are cut into groups before anything drives
     (at most ``batch`` runs, and no more groups than workers need), and each group is driven in
     lock-step in a fresh worker process that loads the model itself; the groups start longest
@@ -253,7 +253,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
 
 def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
     """A worker's share of an evaluation: load the model, drive the group, return results."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     config: EvalConfig = task["config"]
     options = dict(task.get("policy_options", {}))

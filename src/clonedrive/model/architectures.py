@@ -4,7 +4,7 @@ Every model takes one 160x320 RGB camera frame with uint8 values and returns one
 value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``, from the output layer
 ``steering``. With ``speed_head=True`` it has a second output, the layer ``target_speed``
 (``(N, 1)``, a Dense unit beside ``steering`` on the last hidden layer): the expert's target
-speed here divided by ``drivers.network.TARGET_SPEED_SCALE_MPH`` (1.0 = the car's top speed).
+speed here divided by ``network.contract.TARGET_SPEED_SCALE_MPH`` (1.0 = the car's top speed).
 The input layer is
 declared ``uint8``: float32 frames holding whole numbers 0..255 (what ``astype(np.float32)``
 of a camera frame gives) are converted exactly; the cast to float happens after cropping,
@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
 from clonedrive.keras_backend import import_keras
+from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT
 from clonedrive.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
 
 keras = import_keras()

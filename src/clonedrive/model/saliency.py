@@ -170,7 +170,8 @@ def write_saliency(model_path: str | os.PathLike, sources: list[str | os.PathLik
     is neither a readable image nor a log.
     """
     from clonedrive.config import write_json_atomic
-    from clonedrive.drivers.network import NetworkPolicy, load_model
+    from clonedrive.drivers.policy import NetworkPolicy
+    from clonedrive.network.model_file import load_model
     from clonedrive.paths import check_output_folder, inside, safe_stem
 
     if frames_per_log < 1:

@@ -57,9 +57,9 @@ from clonedrive.data.recipe import (
     load_recipe,
     recipe_to_toml,
 )
-from clonedrive.drivers.crop import visible_rows
 from clonedrive.interrupts import raise_if_lost
 from clonedrive.model.history import HISTORY_NAME, read_history, write_history
+from clonedrive.network.crop import visible_rows
 
 logger = logging.getLogger(__name__)
 
@@ -194,7 +194,7 @@ def train(
     ``workers``. Without it, ``out_dir`` must not hold a previous run.
 
     ``notes``: what every model file written carries about how to drive it and the recipe
-    that made it (:func:`clonedrive.drivers.driving_settings.notes_for`); a resumed run keeps
+    that made it (:func:`clonedrive.network.driving_settings.notes_for`); a resumed run keeps
     its ``last.keras``'s notes when given none.
     """
     from clonedrive.keras_backend import import_keras
@@ -209,7 +209,7 @@ def train(
     recipe = resolve_source(source, config.correction)
     state = _prepare_run_folder(out, config, recipe, resume)
     if notes is None and resume and (out / "last.keras").is_file():
-        from clonedrive.drivers.driving_settings import read_notes
+        from clonedrive.network.driving_settings import read_notes
 
         notes = read_notes(out / "last.keras") or None
     save_config(config, out / "config.json")
@@ -223,8 +223,8 @@ def train(
         epochs_done = state["epochs_done"]
         history = read_history(out / HISTORY_NAME)[:epochs_done]
         if epochs_done > 0:
-            from clonedrive.drivers.model_file import check_keras_file
             from clonedrive.model import consistency, losses
+            from clonedrive.network.model_file import check_keras_file
 
             check_keras_file(out / "last.keras")  # bounded before Keras allocates
             model = keras.saving.load_model(
@@ -304,8 +304,8 @@ def _compile(keras, model, config: TrainConfig) -> None:
         model.compile(optimizer=optimizer, loss=_steering_loss(config),
                       metrics=[keras.metrics.MeanSquaredError(name="mse")])
         return
-    from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
     from clonedrive.model.losses import speed_loss
+    from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT
 
     model.compile(
         optimizer=optimizer,
@@ -320,7 +320,7 @@ def load_initial_weights(model, path: str | os.PathLike) -> int:
     """Copy into ``model`` the weights of every layer of the model at ``path`` that has the same
     name and weight shapes (a model without a speed head can start one with it). Returns the
     number of layers copied; ``ValueError`` if none match or the file does not load."""
-    from clonedrive.drivers.network import load_model
+    from clonedrive.network.model_file import load_model
 
     source = load_model(path)
     by_name = {layer.name: layer for layer in source.layers}
@@ -342,7 +342,7 @@ def load_initial_weights(model, path: str | os.PathLike) -> int:
 def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
               notes: dict | None = None) -> Path:
     """Save the model at ``keras_path`` in the legacy HDF5 format (atomically), with ``notes``
-    (drivers.driving_settings) when given. A model with a speed head is saved with its
+    (network.driving_settings) when given. A model with a speed head is saved with its
     steering output only: Udacity's drive.py expects one output."""
     from clonedrive.keras_backend import import_keras
 
@@ -356,7 +356,7 @@ def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
     with atomic_path(h5_path) as temporary:
         model.save(temporary)
         if notes:
-            from clonedrive.drivers.driving_settings import write_notes
+            from clonedrive.network.driving_settings import write_notes
 
             write_notes(temporary, notes)
     return h5_path
@@ -684,7 +684,7 @@ def _save_model_atomic(model, path: Path, notes: dict | None = None) -> None:
     with atomic_path(path) as temporary:
         model.save(temporary)
         if notes:
-            from clonedrive.drivers.driving_settings import write_notes
+            from clonedrive.network.driving_settings import write_notes
 
             write_notes(temporary, notes)
 

@@ -6,7 +6,7 @@ Both follow :class:`~clonedrive.manual.pilot.Pilot`: ``controls(obs)`` for each 
 
 from __future__ import annotations
 
-from clonedrive.drivers.network import Policy
+from clonedrive.drivers.policy import Policy
 from clonedrive.sim.simulator import SimObservation
 from clonedrive.world.track import Track
 from clonedrive.world.vehicle import Controls

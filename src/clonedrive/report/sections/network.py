@@ -16,9 +16,9 @@ def build(ctx: ReportContext) -> list[Section]:
     model_path = train / "model.keras" if train else None
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No `model.keras`: network section skipped.")
-    from clonedrive.drivers.model_bounds import ModelBoundsError
-    from clonedrive.drivers.model_file import check_keras_file
     from clonedrive.keras_backend import import_keras
+    from clonedrive.network.model_bounds import ModelBoundsError
+    from clonedrive.network.model_file import check_keras_file
 
     try:
         check_keras_file(model_path)  # a shared run folder's model may ask for all the memory

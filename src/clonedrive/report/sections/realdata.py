@@ -27,7 +27,7 @@ def build(ctx: ReportContext) -> list[Section]:
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No trained `model.keras`: the real Udacity logs were not "
                                   "checked.")
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.crosscheck import CrosscheckConfig, crosscheck
     from clonedrive.paths import safe_stem
 

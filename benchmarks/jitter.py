@@ -69,7 +69,7 @@ def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -
 
 def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dict:
     """The expert drives one lap (or ``max_seconds``); the model predicts on each frame."""
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
     from clonedrive.episode.trace import smoothness
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.udacity_spec import CONTROL_HZ
@@ -77,7 +77,7 @@ def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dic
     sim = Simulator(track, SimConfig(cameras=("center",)))
     try:
         obs, _ = sim.reset(seed=0)
-        expert = ExpertDriver(sim.track, ExpertConfig(speed_mph=speed_mph))
+        expert = ExpertPolicy(sim.track, ExpertConfig(speed_mph=speed_mph))
         expert.reset()
         labels, predictions, frames = [], [], []
         while obs.laps < 1 and obs.time_s < max_seconds:

@@ -14,7 +14,7 @@ from clonedrive.cli import main
 from clonedrive.dagger import DaggerConfig, MixedDriver, format_table, record_plain
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
-from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner
@@ -36,7 +36,7 @@ def drive_mixed(beta: float, seconds: float = 12.0):
     with Simulator("lake", SimConfig(cameras=("center",), scenery=False)) as sim:
         episode = Episode(sim, EpisodeRules(laps=1, set_speed_mph=15.0, max_seconds=seconds))
         driver = MixedDriver(NetworkPolicy(steer_right_model()),
-                             [ExpertDriver(sim.track, ExpertConfig(speed_mph=15.0))], [15.0],
+                             [ExpertPolicy(sim.track, ExpertConfig(speed_mph=15.0))], [15.0],
                              beta=beta, rng=np.random.default_rng(0))
         who = []
         Runner([episode], driver).run(lambda step: who.append(step.decision.detail))

@@ -242,7 +242,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     labelling every step, and write each track's recording under ``out/<track>/``. Returns
     the collection's figures (also written as ``out/collect.json``)."""
     from clonedrive.data.recorder import RowSink, prepare_log_folder
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
     from clonedrive.episode.drivers import ExpertCar
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
@@ -267,12 +267,12 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
         episodes = [Episode(sim, rules, track=name, seed=seed)
                     for sim, name in zip(sims, config.tracks, strict=True)]
         driver = MixedDriver(
-            policy, [ExpertDriver(track, expert_config) for track in tracks],
+            policy, [ExpertPolicy(track, expert_config) for track in tracks],
             [config.speed_mph] * len(tracks), beta=beta,
             rng=np.random.default_rng([config.seed, seed]), margin_m=config.takeover_margin_m,
             preview_s=config.takeover_preview_s, release_cte_m=config.takeover_release_cte_m,
             min_takeover_s=config.takeover_min_s)
-        labeller = PerCar([ExpertCar(ExpertDriver(track, expert_config)) for track in tracks])
+        labeller = PerCar([ExpertCar(ExpertPolicy(track, expert_config)) for track in tracks])
 
         def on_step(step) -> None:
             label = step.label

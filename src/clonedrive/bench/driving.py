@@ -139,13 +139,13 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
 
 
 def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
     from clonedrive.episode.drivers import ExpertCar
 
     sims = [Simulator(spec.track, SimConfig(cameras=())) for spec in specs]
     try:
         episodes = _episodes(sims, specs, rules)
-        cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
+        cars = [ExpertCar(ExpertPolicy(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
                 for sim, spec in zip(sims, specs, strict=True)]
         return _drive(episodes, PerCar(cars), specs)
     finally:

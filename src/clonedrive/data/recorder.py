@@ -1,6 +1,6 @@
 """Record the expert's driving as a Udacity-format log: ``driving_log.csv`` + ``IMG/`` + config.
 
-``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertDriver` around a
+``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertPolicy` around a
 track in the simulator with its three cameras and writes one row per control step (15 Hz) in
 exactly the Udacity simulator's format (UDACITY.md), through
 :class:`~clonedrive.data.driving_log.DrivingLogWriter`:
@@ -73,7 +73,7 @@ from clonedrive.data.driving_log import (
 )
 from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.speed_labels import LABELS_NAME, SpeedLabelWriter
-from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertPolicy
 from clonedrive.episode.rules import EpisodeRules, Stop
 from clonedrive.output_files import clear_temporary, open_output, refuse_link
 from clonedrive.paths import check_output_folder, describe_os_error, with_filename
@@ -221,7 +221,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
     write_session_config(out, config, track, __version__, session)
 
     rng = np.random.default_rng(config.seed)
-    expert = ExpertDriver(track, config.expert_config(), rng)
+    expert = ExpertPolicy(track, config.expert_config(), rng)
     sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize,
                            conditions=config.conditions(), renderer=config.renderer)
     steering: list[float] = []

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from clonedrive.drivers.expert import ExpertDriver
+from clonedrive.drivers.expert import ExpertPolicy
 from clonedrive.drivers.policy import NetworkPolicy, SpeedController
 from clonedrive.episode.runner import Decision
 from clonedrive.sim.simulator import Controls, SimObservation
@@ -20,7 +20,7 @@ class ExpertCar:
     """The expert driving one car: applies its (possibly noisy) controls and labels the step
     with its clean steering; ``record`` is False where its style does not want the sample."""
 
-    def __init__(self, expert: ExpertDriver) -> None:
+    def __init__(self, expert: ExpertPolicy) -> None:
         self.expert = expert
 
     def reset(self) -> None:

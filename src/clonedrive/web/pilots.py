@@ -18,12 +18,12 @@ class ExpertPilot:
     name = "expert"
 
     def __init__(self, track: Track, *, reverse: bool = False) -> None:
-        from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+        from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 
-        self.driver = ExpertDriver(track, ExpertConfig(reverse=reverse))
+        self.policy = ExpertPolicy(track, ExpertConfig(reverse=reverse))
 
     def controls(self, obs: SimObservation) -> Controls:
-        return self.driver.act(obs).controls_applied
+        return self.policy.act(obs).controls_applied
 
     def manual(self) -> None:
         """The expert steers from the state it sees: nothing to hold."""

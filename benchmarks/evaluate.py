@@ -83,7 +83,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
     alone (render, predict, control, physics, rules), without scene builds or map plots.
     ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each.
     ``rows``: render only these rows (the crop), as ``SimConfig.render_rows``."""
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.drivers import PolicyDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
     from clonedrive.keras_backend import compute_threads
@@ -99,7 +99,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,
                                                                          strict=True)]
         # As evaluate drives a group in its own process: the network on a second thread.
-        runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=overlap)
+        runner = Runner(episodes, PolicyDriver(policy, speeds), overlap=overlap)
         runner.reset()
         steps = 0
 

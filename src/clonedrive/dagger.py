@@ -13,9 +13,10 @@ iteration ``k = 1..iterations``:
    policy). A **safety takeover** hands the car to the expert when it is about to leave the road
    (its side, now or ``takeover_preview_s`` ahead on its heading, within ``takeover_margin_m`` of
    an edge) until it is back near the centreline, heading along the road; takeovers are
-   counted (per km, below), not hidden. The expert (:class:`~clonedrive.episode.drivers.ExpertCar`
-   as the runner's **labeller**) labels every visited frame with its steering and its target
-   speed; every frame is written as a recording, ``iter_k/data/<track>/`` (``driving_log.csv``
+   counted (per km, below), not hidden. The expert
+   (:class:`~clonedrive.episode.drivers.ExpertDriver` as the runner's **labeller**) labels
+   every visited frame with its steering and its target speed; every frame is written as a
+   recording, ``iter_k/data/<track>/`` (``driving_log.csv``
    + ``IMG/`` + ``target_speed.csv``: the steering column holds the expert's label, throttle,
    brake and speed what the car did);
 2. **aggregates** the base recipe and every iteration's recordings so far (center camera and
@@ -155,7 +156,7 @@ class MixedDriver:
     controls with probability ``beta`` (or during a safety takeover), else the network's.
 
     The network's decisions come from one batched prediction for all cars
-    (:class:`~clonedrive.episode.drivers.NetworkDriver`); each car has its own expert at the
+    (:class:`~clonedrive.episode.drivers.PolicyDriver`); each car has its own expert at the
     wheel, called every step so that its steering filter follows the car whoever drives.
     ``Decision.detail`` says who drove: ``"network"``, ``"expert"`` or ``"takeover"``.
     """
@@ -164,9 +165,9 @@ class MixedDriver:
                  beta: float, rng: np.random.Generator, margin_m: float = 0.3,
                  preview_s: float = 1.0, release_cte_m: float = 0.5, min_takeover_s: float = 1.0,
                  control_hz: float = 15.0) -> None:
-        from clonedrive.episode.drivers import NetworkDriver
+        from clonedrive.episode.drivers import PolicyDriver
 
-        self.network = NetworkDriver(policy, set_speeds_mph)
+        self.network = PolicyDriver(policy, set_speeds_mph)
         self.experts = list(experts)
         self.beta = float(beta)
         self.rng = rng
@@ -243,7 +244,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     the collection's figures (also written as ``out/collect.json``)."""
     from clonedrive.data.recorder import RowSink, prepare_log_folder
     from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
     from clonedrive.paths import safe_stem
@@ -272,7 +273,7 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
             rng=np.random.default_rng([config.seed, seed]), margin_m=config.takeover_margin_m,
             preview_s=config.takeover_preview_s, release_cte_m=config.takeover_release_cte_m,
             min_takeover_s=config.takeover_min_s)
-        labeller = PerCar([ExpertCar(ExpertPolicy(track, expert_config)) for track in tracks])
+        labeller = PerCar([ExpertDriver(ExpertPolicy(track, expert_config)) for track in tracks])
 
         def on_step(step) -> None:
             label = step.label

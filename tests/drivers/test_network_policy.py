@@ -1,4 +1,4 @@
-"""The network driver: PI speed control against hand computation, a real Keras model."""
+"""The network policy: PI speed control against hand computation, a real Keras model."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The speed head: a second, named output trained from the expert's target speed, used by the
-network driver capped by the set speed, refused when misnamed."""
+network policy capped by the set speed, refused when misnamed."""
 
 from __future__ import annotations
 

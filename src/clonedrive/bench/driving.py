@@ -110,7 +110,7 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     instead of loading the model file with Keras; the same steering to the last bit. Frames
     are drawn by ``renderer``; only the rows the model's crop keeps unless ``full_frame``."""
     from clonedrive.drivers.policy import load_policy
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.drivers import PolicyDriver
     from clonedrive.keras_backend import compute_threads
 
     policy = load_policy(model_path, trust=trust, runtime=runtime, portable=portable,
@@ -124,7 +124,7 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                                renderer=renderer, render_rows=rows)
             sims.append(Simulator(spec.track, config, pool=pool))
         episodes = _episodes(sims, specs, rules)
-        driver = NetworkDriver(policy, [spec.speed_mph for spec in specs])
+        driver = PolicyDriver(policy, [spec.speed_mph for spec in specs])
         latency = [spec.conditions.latency_steps for spec in specs]
         if any(latency):
             driver = DelayedDriver(driver, latency)
@@ -140,12 +140,12 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
 
 def _drive_expert(specs: list[EpisodeSpec], rules: dict) -> list[dict]:
     from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.drivers import ExpertDriver
 
     sims = [Simulator(spec.track, SimConfig(cameras=())) for spec in specs]
     try:
         episodes = _episodes(sims, specs, rules)
-        cars = [ExpertCar(ExpertPolicy(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
+        cars = [ExpertDriver(ExpertPolicy(sim.track, ExpertConfig(speed_mph=spec.speed_mph)))
                 for sim, spec in zip(sims, specs, strict=True)]
         return _drive(episodes, PerCar(cars), specs)
     finally:

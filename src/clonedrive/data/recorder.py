@@ -208,7 +208,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
 
 def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSummary:
     from clonedrive import __version__
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.runner import Episode, PerCar, Runner, Step
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.world.catalog import load_track
@@ -235,7 +235,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
         # The expert recovers by itself: an off-road event is counted, not intervened.
         episode = Episode(sim, config.episode_rules(), track=config.track, seed=config.seed,
                           options={"reverse": config.reverse}, trace=False)
-        runner = Runner([episode], PerCar([ExpertCar(expert)]))
+        runner = Runner([episode], PerCar([ExpertDriver(expert)]))
         runner.reset()
         wall_start = time.perf_counter()
         bar = _progress_bar(config.laps, progress)

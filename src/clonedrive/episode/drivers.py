@@ -1,4 +1,5 @@
-"""Runner drivers for the drivers of :mod:`clonedrive.drivers`: the expert and the network.
+"""Drivers (the runner's adapters, one car or N) for the policies of :mod:`clonedrive.drivers`:
+the expert (:class:`ExpertDriver`) and the network (:class:`PolicyDriver`).
 
 (The other two kinds sit with what they talk to: the remote drive server is
 :class:`clonedrive.udacity.client.ServerDriver`, a person is the manual window's session.)
@@ -16,7 +17,7 @@ from clonedrive.episode.runner import Decision
 from clonedrive.sim.simulator import Controls, SimObservation
 
 
-class ExpertCar:
+class ExpertDriver:
     """The expert driving one car: applies its (possibly noisy) controls and labels the step
     with its clean steering; ``record`` is False where its style does not want the sample."""
 
@@ -35,7 +36,7 @@ class ExpertCar:
         """The expert steers from the state it sees: nothing to forget."""
 
 
-class NetworkDriver:
+class PolicyDriver:
     """A :class:`~clonedrive.drivers.policy.NetworkPolicy` driving N cars: one batched
     prediction for all their center frames per step, and a PI speed controller per car holding
     that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed

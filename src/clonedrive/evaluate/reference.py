@@ -41,7 +41,7 @@ def expert_reference(track: str, speed_mph: float, *, laps: int = 1,
 def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: float | None
                   ) -> dict:
     from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
     from clonedrive.sim.simulator import SimConfig, Simulator
@@ -50,7 +50,7 @@ def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: fl
         episode = Episode(sim, EpisodeRules(laps=laps, set_speed_mph=speed_mph,
                                             max_seconds=max_seconds), track=name)
         expert = ExpertPolicy(sim.track, ExpertConfig(speed_mph=speed_mph))
-        Runner([episode], PerCar([ExpertCar(expert)])).run()
+        Runner([episode], PerCar([ExpertDriver(expert)])).run()
         return episode.trace.summary()
 
 

@@ -4,7 +4,7 @@ Several runs (track x speed) are driven in lock-step by the episode runner
 (:mod:`clonedrive.episode`) so that their center frames go through the network as one batch per
 control step: single-frame Keras calls dominate otherwise. Each run has its own simulator and its
 own PI speed controller; steering comes from the shared network
-(:class:`~clonedrive.episode.drivers.NetworkDriver`).
+(:class:`~clonedrive.episode.drivers.PolicyDriver`).
 
 The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event the frame the
 network saw is saved, and the car is put back on the centreline heading along the road at the set
@@ -329,7 +329,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
     """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
     cars on a second thread while the other half renders (:class:`Runner`). The group's cars on
     one track share one scene (:class:`CameraPool`)."""
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.drivers import PolicyDriver
     from clonedrive.sim.camera_pool import CameraPool
 
     runs: list[_Run] = []
@@ -344,7 +344,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
             saliency = VisualBackProp(policy.model)
             for run in runs:
                 run.saliency = saliency
-        driver = NetworkDriver(policy, [run.spec.speed_mph for run in runs])
+        driver = PolicyDriver(policy, [run.spec.speed_mph for run in runs])
         runner = Runner([run.episode for run in runs], driver, overlap=overlap)
         runner.reset()
         for run in runs:

@@ -109,7 +109,7 @@ def crop_speedup(crop_top: int) -> tuple[float, list, float, float, float]:
     from evaluate import render_only_steps_per_s
 
     from clonedrive.base.udacity_spec import IMAGE_SHAPE
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.model.architectures import build_model
 
     policy = NetworkPolicy(build_model("fast", crop_top_px=crop_top), set_speed_mph=20.0)
@@ -131,7 +131,7 @@ def crop_speedup(crop_top: int) -> tuple[float, list, float, float, float]:
 def crop_driving(model_path: str) -> dict:
     """The model's runs on lake and mountain (1 lap, 15 mph): cropped and full-frame with the
     software renderer, and cropped with EGL (where it opens)."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
     from clonedrive.sim.engine import probe_egl
 

@@ -18,7 +18,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from clonedrive.drivers.network import load_policy
+from clonedrive.drivers.policy import load_policy
 from clonedrive.evaluate.crosscheck import crosscheck
 
 FIXTURES = Path(__file__).parents[1] / "tests" / "fixtures" / "udacity"

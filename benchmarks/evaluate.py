@@ -84,7 +84,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
     ``shared``: the cars share one scene, as in evaluate (a CameraPool); else one each.
     ``rows``: render only these rows (the crop), as ``SimConfig.render_rows``."""
     from clonedrive.base.keras_backend import compute_threads
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.drivers import PolicyDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, Runner
     from clonedrive.sim.camera_pool import CameraPool
@@ -99,7 +99,7 @@ def steady_loop_steps_per_s(policy, batch: int, seconds: float, *,
                             track="lake", seed=0) for sim, speed in zip(sims, speeds,
                                                                          strict=True)]
         # As evaluate drives a group in its own process: the network on a second thread.
-        runner = Runner(episodes, NetworkDriver(policy, speeds), overlap=overlap)
+        runner = Runner(episodes, PolicyDriver(policy, speeds), overlap=overlap)
         runner.reset()
         steps = 0
 
@@ -123,7 +123,7 @@ def workers_loop_steps_per_s(model_path: str, batch: int, seconds: float,
     """``clonedrive evaluate MODEL`` as a user runs it: the runs cut into groups driven in
     ``workers`` worker processes that load the model themselves (process start, imports and
     scene builds included, as in every evaluation)."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     speeds = tuple(20.0 + 0.5 * i for i in range(batch))
@@ -258,7 +258,7 @@ def server_round_trip_ms() -> tuple[float, float]:
     from server_latency import round_trips, sample_jpeg
 
     from clonedrive.base.udacity_spec import SET_SPEED_MPH
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.model.architectures import build_model
     from clonedrive.udacity import protocol
     from clonedrive.udacity.server import DriveServer
@@ -284,8 +284,9 @@ def main() -> None:
 
     from clonedrive.base.udacity_spec import IMAGE_SHAPE
     from clonedrive.base.workers import default_workers
-    from clonedrive.drivers.network import NetworkPolicy, load_model
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.model.architectures import build_model
+    from clonedrive.network.model_file import load_model
 
     model = load_model(sys.argv[1]) if len(sys.argv) > 1 else build_model("fast")
     policy = NetworkPolicy(model, set_speed_mph=20.0)
@@ -307,7 +308,7 @@ def main() -> None:
     workers_pairs = workers_pairs_steps_per_s(model, workers)
     on_workers, render_workers = _median_pair(workers_pairs)
     # The same loop with the network run by ONNX Runtime (evaluate --runtime onnx).
-    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+    from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
     onnx_policy = NetworkPolicy(OnnxModel(onnx_bytes(model)), set_speed_mph=20.0)
     onnx_policy.predict_steering(np.zeros((8, *IMAGE_SHAPE), np.uint8))

@@ -131,7 +131,7 @@ def build_inputs(sandbox: Path) -> dict[str, Path]:
     paths["model"] = inputs / "tiny.keras"
     subprocess.run([sys.executable, "-c",
                     "import sys; from clonedrive.base.keras_backend import choose_backend; "
-                    "choose_backend(); from clonedrive.drivers.tiny_model import "
+                    "choose_backend(); from clonedrive.network.tiny_model import "
                     "build_tiny_model; build_tiny_model().save(sys.argv[1])",
                     str(paths["model"])], check=True, env=env)
     return paths

@@ -66,7 +66,7 @@ def two_simulators(model) -> dict:
     """Replies to two cars at once against each car alone (steering filter 1 s, hold)."""
     from websockets.asyncio.client import connect
 
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.udacity.server import DriveServer
 
     async def drive(port: int, cars: dict[str, list[str]]) -> dict[str, list[str]]:
@@ -289,7 +289,7 @@ def unseen_count() -> dict:
 def round3() -> dict:
     """Every probe above, printed; returns the figures."""
     sys.path.insert(0, str(ROOT / "src"))
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     sandbox = Path(tempfile.mkdtemp(prefix="clonedrive-faults3-"))
     try:

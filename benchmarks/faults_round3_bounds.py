@@ -144,7 +144,7 @@ def bounds(sandbox: Path) -> dict:
     from clonedrive.base.keras_backend import choose_backend
 
     choose_backend()
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     tiny = sandbox / "tiny.keras"
     build_tiny_model(seed=3).save(tiny)

@@ -255,7 +255,7 @@ def claims(sandbox: Path, model: Path) -> dict:
 def folders(sandbox: Path) -> dict:
     """Every probe above, in ``sandbox`` (a fresh folder); returns the figures."""
     sys.path.insert(0, str(ROOT / "src"))
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     model = sandbox / "tiny.keras"
     build_tiny_model(seed=3).save(model)

@@ -57,7 +57,7 @@ def benchmark_tracks() -> list[str]:
 def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -> np.ndarray:
     """The policy's steering low-pass (:class:`SteeringFilter`, no hold) run forward, then
     backward over the result: the same smoothing with no delay."""
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     def run(series: np.ndarray) -> np.ndarray:
         low_pass = SteeringFilter(time_constant_s, control_hz=hz)
@@ -70,14 +70,14 @@ def zero_phase_low_pass(values: np.ndarray, time_constant_s: float, hz: float) -
 def drive_track(policy, track: str, speed_mph: float, max_seconds: float) -> dict:
     """The expert drives one lap (or ``max_seconds``); the model predicts on each frame."""
     from clonedrive.base.udacity_spec import CONTROL_HZ
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
     from clonedrive.episode.trace import smoothness
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     sim = Simulator(track, SimConfig(cameras=("center",)))
     try:
         obs, _ = sim.reset(seed=0)
-        expert = ExpertDriver(sim.track, ExpertConfig(speed_mph=speed_mph))
+        expert = ExpertPolicy(sim.track, ExpertConfig(speed_mph=speed_mph))
         expert.reset()
         labels, predictions, frames = [], [], []
         while obs.laps < 1 and obs.time_s < max_seconds:
@@ -128,7 +128,7 @@ def main() -> int:
     args = parser.parse_args()
     from tqdm import tqdm
 
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     policy = load_policy(args.model, mirror_average=args.mirror_average)
     tracks = args.tracks or benchmark_tracks()

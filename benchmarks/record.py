@@ -39,11 +39,11 @@ def time_render(steps: int) -> float:
 
 def time_state_only(steps: int) -> float:
     """Seconds per step of the expert and the physics without cameras."""
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
     from clonedrive.sim.simulator import SimConfig, Simulator
 
     with Simulator("lake", SimConfig(cameras=())) as sim:
-        expert = ExpertDriver(sim.track, ExpertConfig(), np.random.default_rng(0))
+        expert = ExpertPolicy(sim.track, ExpertConfig(), np.random.default_rng(0))
         obs, _ = sim.reset(seed=0)
         start = time.perf_counter()
         for _ in range(steps):

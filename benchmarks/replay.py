@@ -107,7 +107,7 @@ class AlwaysZero:
 
 
 def replay_figures(models: list[str], logs: list[Path], trust: bool) -> dict:
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.replay.output import replay
 
     results: dict[str, dict] = {}
@@ -148,7 +148,7 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool,
     tyre would leave the track's narrowest stretch, the true loop's intervention)."""
     from scipy.stats import spearmanr
 
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.replay.episode import ReplayConfig
     from clonedrive.replay.output import replay
 

@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.base.udacity_spec import IMAGE_SHAPE, JPEG_QUALITY, SET_SPEED_MPH
-from clonedrive.drivers.network import NetworkPolicy, load_model
+from clonedrive.drivers.policy import NetworkPolicy
+from clonedrive.network.model_file import load_model
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 
@@ -40,7 +41,7 @@ def build_default_model(architecture: str):
     try:
         from clonedrive.model.architectures import build_model
     except ModuleNotFoundError:
-        from clonedrive.drivers.tiny_model import build_tiny_model
+        from clonedrive.network.tiny_model import build_tiny_model
 
         print("clonedrive.model.architectures not found: using the tiny test model")
         return build_tiny_model(), "tiny"
@@ -123,7 +124,7 @@ def time_parts(model, jpeg: bytes, repeats: int, onnx_model=None) -> dict[str, l
 def onnx_twin(model):
     """The model converted to ONNX and run by ONNX Runtime, or None without the onnx extra."""
     try:
-        from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+        from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
         return OnnxModel(onnx_bytes(model), source="benchmark model (ONNX)")
     except ValueError as error:  # the extra is not installed

@@ -46,9 +46,9 @@ def recorded_jpeg() -> bytes:
 
 @pytest.fixture(scope="session")
 def tiny_model():
-    """The tiny steering network (:mod:`clonedrive.drivers.tiny_model`), seeded; shared, so
+    """The tiny steering network (:mod:`clonedrive.network.tiny_model`), seeded; shared, so
     tests must not train or change it."""
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     return build_tiny_model(seed=TINY_MODEL_SEED)
 

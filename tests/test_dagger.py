@@ -13,8 +13,8 @@ import pytest
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recorder import RecordConfig, record
-from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
-from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner
 from clonedrive.model.train import TrainConfig, train
@@ -39,7 +39,7 @@ def drive_mixed(beta: float, seconds: float = 12.0):
     with Simulator("lake", SimConfig(cameras=("center",), scenery=False)) as sim:
         episode = Episode(sim, EpisodeRules(laps=1, set_speed_mph=15.0, max_seconds=seconds))
         driver = MixedDriver(NetworkPolicy(steer_right_model()),
-                             [ExpertDriver(sim.track, ExpertConfig(speed_mph=15.0))], [15.0],
+                             [ExpertPolicy(sim.track, ExpertConfig(speed_mph=15.0))], [15.0],
                              beta=beta, rng=np.random.default_rng(0))
         who = []
         Runner([episode], driver).run(lambda step: who.append(step.decision.detail))
@@ -182,7 +182,7 @@ def test_a_takeover_recording_from_the_web_page_is_aggregated(tmp_path: Path) ->
 def test_collection_records_whole_frames_whatever_the_network_crops(tmp_path: Path) -> None:
     """Collected frames are training data: they are rendered whole even for a policy that
     looks at a strip (a recipe may crop differently, and augmentation shifts rows)."""
-    from clonedrive.drivers.tiny_model import build_road_follower
+    from clonedrive.network.tiny_model import build_road_follower
     from clonedrive.pipelines.dagger.stages import collect
 
     policy = NetworkPolicy(build_road_follower(), set_speed_mph=15.0)

@@ -85,7 +85,7 @@ def test_a_run_folder_of_another_recipe_is_refused_not_reused(tmp_path, capsys):
 def test_a_model_of_another_recipe_is_refused(tmp_path, tiny_model_path):
     import shutil
 
-    from clonedrive.drivers.driving_settings import DrivingSettings, notes_for, write_notes
+    from clonedrive.network.driving_settings import DrivingSettings, notes_for, write_notes
     from clonedrive.pipelines.demo import DemoFolderError, _check_same_recipe
     from clonedrive.recipes.book import load_recipe_file
 

@@ -255,7 +255,7 @@ def read_only(tmp_path):
 
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory) -> Path:
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     path = tmp_path_factory.mktemp("model") / "tiny.keras"
     build_tiny_model().save(path)

@@ -4,7 +4,7 @@ from clonedrive.base import udacity_spec as spec
 from clonedrive.cli import build_parser
 from clonedrive.data.recipe import DEFAULT_CORRECTION
 from clonedrive.data.recorder import RecordConfig
-from clonedrive.drivers.network import SpeedController
+from clonedrive.drivers.policy import SpeedController
 from clonedrive.manual.config import ManualConfig
 from clonedrive.recipes.book import load_recipe_file
 from clonedrive.sim.simulator import SimConfig

@@ -56,7 +56,7 @@ def test_scores_per_run_split_and_method():
 
 @pytest.fixture(scope="module")
 def tiny_models(tmp_path_factory):
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.network.tiny_model import build_tiny_model
 
     folder = tmp_path_factory.mktemp("models")
     paths = []
@@ -131,7 +131,7 @@ def test_ray_gives_the_same_results_as_local_workers(tmp_path, tiny_models):
 
 def test_every_model_task_carries_the_policy_options_and_the_workers_drive_with_them(
         tmp_path, tiny_models):
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     suite_path = tmp_path / "tiny.toml"
     suite_path.write_text(SUITE, encoding="utf-8")

@@ -22,7 +22,7 @@ def test_a_students_model_is_benched_only_with_trust(tmp_path: Path) -> None:
         offline_mse(path, rows)
     trusted = offline_mse(path, rows, trust=True)
     # The same network rebuilt without its Lambda (a safe .keras file) scores the same.
-    from clonedrive.drivers.legacy_keras import rebuild
+    from clonedrive.network.legacy_keras import rebuild
 
     safe = tmp_path / "rebuilt.keras"
     rebuild(path, normalisation=(1 / 255.0, -0.5)).save(safe)

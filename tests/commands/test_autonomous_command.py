@@ -8,7 +8,7 @@ import math
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.udacity.server import DriveServer
 
 

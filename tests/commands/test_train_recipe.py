@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.drivers.driving_settings import DrivingSettings, read_notes, stored_settings
+from clonedrive.network.driving_settings import DrivingSettings, read_notes, stored_settings
 
 LAKE = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "lake_posix_mixed_columns"
 

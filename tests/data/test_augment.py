@@ -158,8 +158,8 @@ def test_rows_compute_only_the_rows_a_cropping_network_sees_and_the_same_values(
 
 def test_a_network_gives_the_same_output_on_row_windowed_batches() -> None:
     """What makes `train` augment only the cropped rows: the network sees identical input."""
-    from clonedrive.drivers.crop import visible_rows
     from clonedrive.model.architectures import build_model
+    from clonedrive.network.crop import visible_rows
 
     frames = _frames(8, seed=6)
     steering = np.zeros(8, np.float32)

@@ -18,7 +18,7 @@ from clonedrive.data.speed_labels import (
     SpeedLabelWriter,
     read_speed_labels,
 )
-from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 from clonedrive.sim.simulator import SimConfig, Simulator
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
@@ -45,8 +45,8 @@ def test_recorder_writes_the_expert_target_speed_beside_a_seven_field_log(tmp_pa
 def test_label_speed_is_the_profile_without_the_set_speed_cap() -> None:
     with Simulator("mountain", SimConfig(cameras=())) as sim:
         obs, _ = sim.reset(seed=0)
-        slow = ExpertDriver(sim.track, ExpertConfig(speed_mph=10.0))
-        fast = ExpertDriver(sim.track, ExpertConfig(speed_mph=30.0))
+        slow = ExpertPolicy(sim.track, ExpertConfig(speed_mph=10.0))
+        fast = ExpertPolicy(sim.track, ExpertConfig(speed_mph=30.0))
         labels_slow, labels_fast, targets_slow = [], [], []
         for _ in range(400):
             action = fast.act(obs)

@@ -1,4 +1,4 @@
-"""The expert driver, state-only (no rendering): it drives every track, its styles put the car
+"""The expert policy, state-only (no rendering): it drives every track, its styles put the car
 where they say, its labels are clean under noise, and it steers smoothly."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 from clonedrive.sim.simulator import SimConfig, Simulator
 from clonedrive.world.catalog import load_track
 
@@ -18,7 +18,7 @@ def drive(track_name, *, laps=1, seconds=None, seed=0, **expert_options):
     """Drive the expert; returns (observations before each step, actions, final observation)."""
     track = load_track(track_name)
     config = ExpertConfig(**expert_options)
-    expert = ExpertDriver(track, config, np.random.default_rng(seed))
+    expert = ExpertPolicy(track, config, np.random.default_rng(seed))
     observations, actions = [], []
     with Simulator(track, STATE_ONLY) as sim:
         obs, _ = sim.reset(seed=seed, options={"reverse": config.reverse})
@@ -48,7 +48,7 @@ def test_drives_a_lap_at_30_mph_without_leaving_the_road(track_name, reverse):
 
 def test_slows_for_a_hairpin_and_speeds_up_on_straights():
     track = load_track("mountain")
-    expert = ExpertDriver(track, ExpertConfig(speed_mph=30.0))
+    expert = ExpertPolicy(track, ExpertConfig(speed_mph=30.0))
     tightest = float(track.s[np.argmax(np.abs(track.curvature_table))])
     radius = 1.0 / float(np.abs(track.curvature_table).max())
     # v^2 / R <= 0.5 g at the tightest point, and the set speed is a maximum.
@@ -76,7 +76,7 @@ def test_with_noise_the_label_is_the_clean_command_for_the_state():
     assert np.mean(np.abs(applied - labels) > 0.01) > 0.5  # the car is really perturbed
     # A noise-free twin shown the same states gives exactly the same labels.
     track = load_track("lake")
-    twin = ExpertDriver(track, ExpertConfig(speed_mph=20.0, noise=0.0), np.random.default_rng(3))
+    twin = ExpertPolicy(track, ExpertConfig(speed_mph=20.0, noise=0.0), np.random.default_rng(3))
     twin_labels = np.array([twin.act(obs).label_steering for obs in observations])
     np.testing.assert_array_equal(twin_labels, labels)
 

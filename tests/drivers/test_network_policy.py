@@ -1,4 +1,4 @@
-"""The network driver: PI speed control against hand computation, a real Keras model."""
+"""The network policy: PI speed control against hand computation, a real Keras model."""
 
 from __future__ import annotations
 
@@ -7,13 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clonedrive.drivers.network import (
-    NetworkPolicy,
-    Policy,
-    SpeedController,
-    load_model,
-    load_policy,
-)
+from clonedrive.drivers.policy import NetworkPolicy, Policy, SpeedController, load_policy
+from clonedrive.network.model_file import load_model
 
 
 def test_pi_matches_drive_py_by_hand() -> None:
@@ -163,7 +158,7 @@ def test_load_errors(tmp_path: Path) -> None:
 
 
 def test_steering_filter_is_a_first_order_low_pass() -> None:
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     passthrough = SteeringFilter(0.0)
     assert [passthrough.update(v) for v in (0.5, -0.5)] == [0.5, -0.5]
@@ -184,7 +179,7 @@ def test_steering_filter_is_a_first_order_low_pass() -> None:
 
 
 def test_steering_hold_keeps_the_wheel_through_small_jitter_without_delay() -> None:
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     hold = SteeringFilter(hold=0.05)
     jitter = [0.10, 0.13, 0.08, 0.12, 0.09]  # within 0.05 of the wheel: it stays

@@ -109,7 +109,7 @@ def test_nan_predictions_are_counted_not_hidden(tmp_path: Path) -> None:
     import keras
     from keras import layers
 
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.evaluate.crosscheck import format_summary
 
     inputs = keras.Input(shape=(160, 320, 3))

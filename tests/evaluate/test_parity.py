@@ -6,7 +6,7 @@ simulator as the Udacity client of a real ``clonedrive drive`` process over a so
 interventions and stop reasons must agree exactly; the cross-track error may differ only by what
 JPEG compression does to the network's input.
 
-The model is :func:`~clonedrive.drivers.tiny_model.build_road_follower`, hand-weighted so that it
+The model is :func:`~clonedrive.network.tiny_model.build_road_follower`, hand-weighted so that it
 drives without training; the tracks are small stadiums written here: a wide one it laps cleanly
 and a tight one whose bends it cannot take at the set speed (interventions).
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.drivers.tiny_model import build_road_follower
+from clonedrive.network.tiny_model import build_road_follower
 
 SET_SPEED = "15"
 #: Allowed |evaluate - autonomous| differences. JPEG at quality 75 (what the Udacity protocol

@@ -1,7 +1,7 @@
 """A model drives the same way whoever renders, and whether or not only its crop is rendered.
 
-The model is :func:`~clonedrive.drivers.tiny_model.build_road_follower` (hand-weighted, no
-training; it crops rows 75-130 after a per-pixel Rescaling, which :mod:`clonedrive.drivers.crop`
+The model is :func:`~clonedrive.network.tiny_model.build_road_follower` (hand-weighted, no
+training; it crops rows 75-130 after a per-pixel Rescaling, which :mod:`clonedrive.network.crop`
 reads as its crop), on lake and mountain without scenery, for the first ``SECONDS`` of a lap
 each: laps and interventions must be equal with the software renderer full-frame, the software
 renderer cropped, and EGL (llvmpipe here and in CI) cropped; the cross-track error may move by
@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import pytest
 
-from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_road_follower
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.evaluate.config import EvalConfig
 from clonedrive.evaluate.rollout import evaluate
+from clonedrive.network.tiny_model import build_road_follower
 from clonedrive.sim.engine import probe_egl
 
 #: Simulated seconds per run, and the set speed [mph].

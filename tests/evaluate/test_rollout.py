@@ -4,8 +4,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.trace import autonomy_pct, smoothness
 from clonedrive.evaluate.rollout import (
     EvalConfig,
@@ -14,6 +13,7 @@ from clonedrive.evaluate.rollout import (
     hud_frame,
     run_specs,
 )
+from clonedrive.network.tiny_model import build_tiny_model
 
 LAKE_JSON = resources.files("clonedrive.world") / "tracks" / "lake.json"
 
@@ -239,7 +239,7 @@ def test_a_track_is_resolved_once_and_the_loaded_track_drives(tmp_path, tiny_mod
                                                               workers):
     """The Track the caller loaded goes down to the simulators, the workers and the expert's
     reference: the file it came from is gone before anything drives."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.world.catalog import load_track
 
     path = tmp_path / "mine.json"

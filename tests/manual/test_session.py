@@ -289,7 +289,7 @@ def test_autonomous_mode_without_a_server_says_so(tmp_path, free_port):
 
 
 def test_autonomous_mode_lets_a_drive_server_steer_and_a_key_take_over(tmp_path, tiny_model):
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.udacity.server import DriveServer
 
     policy = NetworkPolicy(tiny_model, set_speed_mph=9.0)

@@ -16,7 +16,7 @@ from clonedrive.data.batches import DrivingBatches, ImageCache
 from clonedrive.data.neighbours import next_frames
 from clonedrive.data.recipe import default_recipe_for, expand
 from clonedrive.data.recorder import RecordConfig, record
-from clonedrive.drivers.network import load_policy
+from clonedrive.drivers.policy import load_policy
 from clonedrive.model.consistency import ConsistentMSE
 from clonedrive.model.train import TrainConfig, train
 

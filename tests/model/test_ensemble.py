@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from clonedrive.cli import main
-from clonedrive.drivers.network import NetworkPolicy, has_speed_head, load_model
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.model.architectures import build_model
 from clonedrive.model.ensemble import build_ensemble
+from clonedrive.network.contract import has_speed_head
+from clonedrive.network.model_file import load_model
 
 
 def frames(count: int, seed: int) -> np.ndarray:
@@ -41,7 +43,7 @@ def test_ensemble_predicts_the_members_mean_and_drives(tmp_path: Path) -> None:
 
 
 def policy_speed_scale() -> float:
-    from clonedrive.drivers.network import TARGET_SPEED_SCALE_MPH
+    from clonedrive.network.contract import TARGET_SPEED_SCALE_MPH
 
     return float(TARGET_SPEED_SCALE_MPH)
 

@@ -11,9 +11,9 @@ import pytest
 
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
 from clonedrive.cli import main
-from clonedrive.drivers.crop import CROP_BOTTOM_PX, CROP_TOP_PX
 from clonedrive.model.architectures import build_model
 from clonedrive.model.saliency import VisualBackProp, _spread, overlay
+from clonedrive.network.crop import CROP_BOTTOM_PX, CROP_TOP_PX
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 
@@ -89,7 +89,7 @@ def test_saliency_command_on_images_and_logs(tmp_path, capsys) -> None:
 
 
 def test_evaluate_video_can_show_where_the_network_looks(tmp_path) -> None:
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
     from clonedrive.evaluate.video import read_stills
 
@@ -118,7 +118,7 @@ def test_a_model_cropping_less_has_masks_from_its_own_top_row() -> None:
 def test_saliency_videos_from_worker_processes_load_the_keras_model(tmp_path) -> None:
     """Workers normally run the model's traces without Keras; VisualBackProp needs the Keras
     model, so with --video-saliency they load the model file."""
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     model = build_model("fast", seed=0)

@@ -1,5 +1,5 @@
 """The speed head: a second, named output trained from the expert's target speed, used by the
-network driver capped by the set speed, refused when misnamed."""
+network policy capped by the set speed, refused when misnamed."""
 
 from __future__ import annotations
 
@@ -12,16 +12,15 @@ import numpy as np
 import pytest
 
 from clonedrive.data.recorder import RecordConfig, record
-from clonedrive.drivers.network import (
-    SPEED_OUTPUT,
-    TARGET_SPEED_SCALE_MPH,
-    NetworkPolicy,
-    check_model,
-    has_speed_head,
-    load_policy,
-)
+from clonedrive.drivers.policy import NetworkPolicy, load_policy
 from clonedrive.model.architectures import MODEL_NAMES, build_model
 from clonedrive.model.train import TrainConfig, train
+from clonedrive.network.contract import (
+    SPEED_OUTPUT,
+    TARGET_SPEED_SCALE_MPH,
+    check_model,
+    has_speed_head,
+)
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 

@@ -7,7 +7,7 @@ from importlib import resources
 
 import pytest
 
-from clonedrive.drivers.driving_settings import DrivingSettings
+from clonedrive.network.driving_settings import DrivingSettings
 from clonedrive.pipelines.demo import DemoConfig, demo_plan
 from clonedrive.recipes.book import (
     BUILT_IN,

@@ -25,10 +25,10 @@ SUBSECTIONS = ("Camera views", "Augmentation", "Speed control", "Track maps",
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> Path:
     from clonedrive.data.recorder import RecordConfig, record
-    from clonedrive.drivers.network import NetworkPolicy
-    from clonedrive.drivers.tiny_model import build_tiny_model
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
     from clonedrive.model.train import TrainConfig, train
+    from clonedrive.network.tiny_model import build_tiny_model
 
     run = tmp_path_factory.mktemp("run")
     record(RecordConfig(track="lake", style="left", seconds=3.0, scenery=False,

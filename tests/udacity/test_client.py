@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.sim.simulator import Controls
 from clonedrive.udacity import protocol
 from clonedrive.udacity.client import (

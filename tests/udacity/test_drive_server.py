@@ -20,7 +20,7 @@ from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, ConnectionClosedError, InvalidStatus
 
 from clonedrive.base.images import read_rgb
-from clonedrive.drivers.network import NetworkPolicy, load_policy
+from clonedrive.drivers.policy import NetworkPolicy, load_policy
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 

@@ -18,7 +18,7 @@ import socketio
 import websocket
 from websockets.asyncio.client import connect
 
-from clonedrive.drivers.network import NetworkPolicy
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 

@@ -15,7 +15,7 @@ from support.student_models import student_model, write_keras2_h5
 from websockets.asyncio.client import connect
 
 from clonedrive.cli import main
-from clonedrive.drivers.network import NetworkPolicy, load_policy
+from clonedrive.drivers.policy import NetworkPolicy, load_policy
 from clonedrive.udacity import protocol
 from clonedrive.udacity.server import DriveServer
 
@@ -80,8 +80,8 @@ def test_nan_predictions_are_counted_and_logged(jpegs, caplog) -> None:
 
 def test_an_onnx_model_is_served(tmp_path: Path, jpegs) -> None:
     pytest.importorskip("onnxruntime")
-    from clonedrive.drivers.onnx_runtime import export_onnx
     from clonedrive.model.architectures import build_model
+    from clonedrive.network.onnx_runtime import export_onnx
 
     model = build_model("fast", seed=2)
     path = export_onnx(model, tmp_path / "model.onnx")

@@ -21,7 +21,7 @@ TOKEN = "test-token-0123456789"
 def web_app(tiny_model, tmp_path_factory):
     """The app on lake (no scenery: quick), the tiny model as its model; stepping once a page
     connects."""
-    from clonedrive.drivers.network import NetworkPolicy
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.web.app import WebApp, WebSession
     from clonedrive.web.config import WebConfig
 

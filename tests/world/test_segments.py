@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 from clonedrive.sim.simulator import SimConfig, Simulator
 from clonedrive.world.catalog import load_track
 from clonedrive.world.generate import GENERATOR_VERSION, generate
@@ -72,7 +72,7 @@ def test_hard_tracks_have_hairpins_steep_grades_and_narrow_roads():
 @pytest.mark.parametrize("name", ["gen2:hard:0", "gen2:hard:3"])
 def test_the_expert_drives_a_hard_track_cleanly_at_30_mph(name):
     track = load_track(name)
-    expert = ExpertDriver(track, ExpertConfig(speed_mph=30.0))
+    expert = ExpertPolicy(track, ExpertConfig(speed_mph=30.0))
     with Simulator(track, SimConfig(cameras=())) as sim:
         obs, _ = sim.reset(seed=0)
         while sim.laps_started < 1 and obs.time_s < 400:

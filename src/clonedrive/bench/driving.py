@@ -115,8 +115,8 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
     instead of loading the model file with Keras; the same steering to the last bit. Frames
     are drawn by ``renderer``; only the rows the model's crop keeps unless ``full_frame``."""
     from clonedrive.base.keras_backend import compute_threads
-    from clonedrive.drivers.network import load_policy
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.drivers.policy import load_policy
+    from clonedrive.episode.drivers import PolicyDriver
 
     policy = load_policy(model_path, trust=trust, runtime=runtime, portable=portable,
                          **policy_options)
@@ -129,7 +129,7 @@ def _drive_model(model_path: str, specs: list[EpisodeSpec], rules: dict, *,
                                renderer=renderer, render_rows=rows)
             sims.append(Simulator(spec.track, config, pool=pool))
         episodes = _episodes(sims, specs, rules)
-        driver = NetworkDriver(policy, [spec.speed_mph for spec in specs])
+        driver = PolicyDriver(policy, [spec.speed_mph for spec in specs])
         latency = [spec.conditions.latency_steps for spec in specs]
         if any(latency):
             driver = DelayedDriver(driver, latency)
@@ -148,13 +148,13 @@ def _drive_expert(specs: list[EpisodeSpec], rules: dict, *, latency: bool = Fals
     """The expert's laps of ``specs`` (state only). With ``latency`` each car obeys as late as
     its episode's conditions say, as a network's would: whether the expert can drive an
     episode clean at all (a suite's episodes must stay within physics)."""
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
+    from clonedrive.episode.drivers import ExpertDriver
 
     sims = [Simulator(spec.track, SimConfig(cameras=())) for spec in specs]
     try:
         episodes = _episodes(sims, specs, rules)
-        cars = [ExpertCar(ExpertDriver(sim.track, ExpertConfig(speed_mph=spec.speed_mph,
+        cars = [ExpertDriver(ExpertPolicy(sim.track, ExpertConfig(speed_mph=spec.speed_mph,
                                                                reverse=spec.reverse)))
                 for sim, spec in zip(sims, specs, strict=True)]
         driver = PerCar(cars)

@@ -50,7 +50,7 @@ class BenchConfig:
     workers: int | None = None  #: local worker processes (default: one per CPU core)
     ray: str | None = None  #: "auto", a Ray cluster address, or "local"
     batch: int = 4  #: episodes one worker drives in lock-step
-    # What stands between each network and the controls (drivers.driving_settings); None:
+    # What stands between each network and the controls (network.driving_settings); None:
     # each model's own setting, stored in its file (drive.py's, all off, where it has none).
     slow_in_curves: bool | None = None  #: the network's target speed falls with |steering|
     steering_filter_s: float | None = None  #: low-pass on the predicted steering [s]
@@ -59,10 +59,10 @@ class BenchConfig:
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
-    trust_model: bool = False  #: allow Lambda layers (--trust-model; drivers.model_file)
+    trust_model: bool = False  #: allow Lambda layers (--trust-model; network.model_file)
     runtime: str = "auto"  #: "auto", "keras" or "onnx" (--runtime)
     renderer: str = DEFAULT_RENDERER  #: "auto", "software" or "egl" (sim/engine.py)
-    #: render whole frames, not only the rows each model's crop keeps (drivers/crop.py)
+    #: render whole frames, not only the rows each model's crop keeps (network/crop.py)
     full_frame: bool = False
 
     def __post_init__(self) -> None:
@@ -101,7 +101,7 @@ def _curve_rule_text(slow_in_curves: bool | None) -> str:
 def _model_settings(entry: str, config: BenchConfig) -> dict:
     """The driving settings a model of the bench drives with: its file's, then the options
     given for every model."""
-    from clonedrive.drivers.driving_settings import DrivingSettings, stored_settings
+    from clonedrive.network.driving_settings import DrivingSettings, stored_settings
 
     path = _label_and_path(entry)[1]
     stored = stored_settings(path) if Path(path).is_file() else None
@@ -288,7 +288,7 @@ def _add_portable_models(tasks: list[dict], config: BenchConfig, workers: int) -
     """Give each model's batches the model's checked traces (``task["portable"]``, see
     :meth:`NetworkPolicy.portable`), for the models with enough batches to gain from it; the
     others' workers load the model file, as do the batches of a model that does not trace."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     counts: dict[str, int] = {}
     for task in tasks:
@@ -312,7 +312,7 @@ def offline_mse(model_path: str, rows: list, *, trust: bool = False,
     import numpy as np
 
     from clonedrive.base.images import read_rgb
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     policy = load_policy(model_path, trust=trust, runtime=runtime)
     errors = []

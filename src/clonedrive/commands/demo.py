@@ -8,7 +8,7 @@ from clonedrive.commands.counts import MAX_EPOCHS, MAX_UNSEEN, MAX_WORKERS, coun
 
 HELP = "record expert data, train, evaluate in closed loop and write the report (the main job)"
 DESCRIPTION = (
-    "From an empty folder, follow a recipe: record its data with the expert driver, train a "
+    "From an empty folder, follow a recipe: record its data with the expert, train a "
     "network with its settings, evaluate the model in closed loop as the recipe says (the "
     "built-in 'best': lake and mountain at 15 and 30 mph and 10 generated tracks it never saw "
     "at 30 mph, with videos), and write report.md / report.html. The model file carries the "

@@ -56,8 +56,9 @@ def _combine(args: argparse.Namespace, out) -> int:
 
     from clonedrive.base.config import atomic_path
     from clonedrive.base.udacity_spec import IMAGE_SHAPE
-    from clonedrive.drivers.driving_settings import copy_notes
-    from clonedrive.drivers.network import has_speed_head, load_model
+    from clonedrive.network.contract import has_speed_head
+    from clonedrive.network.driving_settings import copy_notes
+    from clonedrive.network.model_file import load_model
 
     try:
         members = [load_model(path, trust=args.trust_model, runtime="keras")

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from clonedrive.base.udacity_spec import IMAGE_SHAPE
-    from clonedrive.drivers.network import load_model
+    from clonedrive.network.model_file import load_model
 
     model_path = Path(args.model)
     out = Path(args.out) if args.out else model_path.with_suffix(".onnx")
@@ -56,10 +56,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         with lock:
             model = load_model(model_path, trust=args.trust_model, runtime="keras")
-            from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx
+            from clonedrive.network.onnx_runtime import OnnxModel, export_onnx
 
             export_onnx(model, out)
-            from clonedrive.drivers.driving_settings import copy_notes
+            from clonedrive.network.driving_settings import copy_notes
 
             copy_notes(model_path, out)  # driven as the model it came from
         onnx_model = OnnxModel.from_file(out)

@@ -4,7 +4,7 @@
 models) with a loud warning; ``--runtime`` runs the model with Keras or ONNX Runtime;
 ``--allow-nan-model`` drives a model whose steering is NaN on a probe frame (refused
 otherwise: such a model would be driven straight, frame after frame, and score as if it
-drove). Loading goes through :func:`clonedrive.drivers.network.load_policy`.
+drove). Loading goes through :func:`clonedrive.drivers.policy.load_policy`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
 def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = True) -> None:
     """``--steering-filter``, ``--steering-hold``, ``--mirror-average`` and (with ``speed``)
     ``--slow-in-curves``: what stands between the network and the controls
-    (:class:`clonedrive.drivers.driving_settings.DrivingSettings`). Each left out takes the
+    (:class:`clonedrive.network.driving_settings.DrivingSettings`). Each left out takes the
     setting stored in the model file (drive.py's, all off, for a file without them)."""
     parser.add_argument("--steering-filter", type=_steering_filter_s, default=None, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
@@ -59,14 +59,14 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
 def _steering_filter_s(text: str) -> float:
     """``--steering-filter``'s value, refused by argparse (exit 2) where the filter refuses it
     (NaN, infinity, negative)."""
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     return _checked_float(text, lambda value: SteeringFilter(time_constant_s=value))
 
 
 def _steering_hold(text: str) -> float:
     """``--steering-hold``'s value, refused by argparse (exit 2) outside [0, 1)."""
-    from clonedrive.drivers.network import SteeringFilter
+    from clonedrive.drivers.policy import SteeringFilter
 
     return _checked_float(text, lambda value: SteeringFilter(hold=value))
 
@@ -84,7 +84,7 @@ def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_op
     """``load_policy(model_path, trust=args.trust_model, runtime=args.runtime, ...)``, with the
     steering filter, hold and mirror averaging when the command has
     :func:`add_steering_arguments`."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     policy = load_policy(model_path, trust=getattr(args, "trust_model", False),
                          runtime=getattr(args, "runtime", "auto"), **steering_options(args),

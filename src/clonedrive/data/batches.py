@@ -28,8 +28,8 @@ from clonedrive.base.keras_backend import import_keras
 from clonedrive.base.paths import with_filename
 from clonedrive.base.udacity_spec import IMAGE_SHAPE as FRAME_SHAPE
 from clonedrive.data.augment import AugmentConfig, augment_batch
-from clonedrive.data.samples import Samples
-from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
+from clonedrive.data.recipe import Samples
+from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT, TARGET_SPEED_SCALE_MPH
 
 keras = import_keras()
 

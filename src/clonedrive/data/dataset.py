@@ -29,7 +29,7 @@ import numpy as np
 from clonedrive.base.udacity_spec import IMAGE_HEIGHT
 from clonedrive.data.recipe import Recipe, expand
 from clonedrive.data.samples import Samples
-from clonedrive.drivers.crop import CROP_BOTTOM_PX
+from clonedrive.network.crop import CROP_BOTTOM_PX
 
 if TYPE_CHECKING:
     from clonedrive.base.images import ImageDecodeError

@@ -1,6 +1,6 @@
 """Record the expert's driving as a Udacity-format log: ``driving_log.csv`` + ``IMG/`` + config.
 
-``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertDriver` around a
+``record(config, out_dir)`` drives the :class:`~clonedrive.drivers.expert.ExpertPolicy` around a
 track in the simulator with its three cameras and writes one row per control step (15 Hz) in
 exactly the Udacity simulator's format (UDACITY.md), through
 :class:`~clonedrive.data.row_sink.RowSink` and its
@@ -66,7 +66,7 @@ from clonedrive.data.driving_log import STEERING_HISTOGRAM_BINS
 from clonedrive.data.log_folder import check_start_time, prepare_log_folder, write_session_config
 from clonedrive.data.recording_lock import RecordingLock
 from clonedrive.data.row_sink import RowSink
-from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertDriver
+from clonedrive.drivers.expert import STYLES, ExpertConfig, ExpertPolicy
 from clonedrive.episode.rules import EpisodeRules, Stop
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
 from clonedrive.world.vehicle import check_set_speed
@@ -189,7 +189,7 @@ def record(config: RecordConfig, out_dir: str | os.PathLike, *, progress: bool =
 
 def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSummary:
     from clonedrive import __version__
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.runner import Episode, PerCar, Runner, Step
     from clonedrive.sim.simulator import SimConfig, Simulator
     from clonedrive.world.catalog import load_track
@@ -202,7 +202,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
     write_session_config(out, config, track, __version__, session)
 
     rng = np.random.default_rng(config.seed)
-    expert = ExpertDriver(track, config.expert_config(), rng)
+    expert = ExpertPolicy(track, config.expert_config(), rng)
     sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize,
                            conditions=config.conditions(), renderer=config.renderer)
     steering: list[float] = []
@@ -216,7 +216,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
         # The expert recovers by itself: an off-road event is counted, not intervened.
         episode = Episode(sim, config.episode_rules(), track=config.track, seed=config.seed,
                           options={"reverse": config.reverse}, trace=False)
-        runner = Runner([episode], PerCar([ExpertCar(expert)]))
+        runner = Runner([episode], PerCar([ExpertDriver(expert)]))
         runner.reset()
         wall_start = time.perf_counter()
         bar = _progress_bar(config.laps, progress)

@@ -160,7 +160,7 @@ def with_headroom(labels_mph: np.ndarray, recording: np.ndarray, row: np.ndarray
     it (see the module doc), per sample; samples are grouped into rows by ``(recording, row)``
     and each recording's rows taken in CSV order."""
     from clonedrive.drivers.expert import ExpertConfig
-    from clonedrive.drivers.network import TARGET_SPEED_SCALE_MPH
+    from clonedrive.network.contract import TARGET_SPEED_SCALE_MPH
     from clonedrive.world.vehicle import MPH_TO_MPS
 
     labels = np.asarray(labels_mph, dtype=np.float32)

@@ -1,4 +1,4 @@
-"""The expert driver: pure pursuit on a target line, a speed profile from the curvature ahead.
+"""The expert policy: pure pursuit on a target line, a speed profile from the curvature ahead.
 
 The expert knows the track (it is the autopilot that produces training data, not a learner). Each
 control step it:
@@ -116,7 +116,7 @@ class ExpertAction:
     record: bool  #: False where the style does not want the sample (``turns`` on straights)
 
 
-class ExpertDriver:
+class ExpertPolicy:
     """An autopilot that drives ``track`` in a style; call :meth:`reset` with the simulator's."""
 
     def __init__(self, track: Track, config: ExpertConfig | None = None,

@@ -1,4 +1,5 @@
-"""Runner drivers for the drivers of :mod:`clonedrive.drivers`: the expert and the network.
+"""Drivers (the runner's adapters, one car or N) for the policies of :mod:`clonedrive.drivers`:
+the expert (:class:`ExpertDriver`) and the network (:class:`PolicyDriver`).
 
 (The other two kinds sit with what they talk to: the remote drive server is
 :class:`clonedrive.udacity.client.ServerDriver`, a person is the manual window's session.)
@@ -10,17 +11,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from clonedrive.drivers.expert import ExpertDriver
-from clonedrive.drivers.network import NetworkPolicy, SpeedController
+from clonedrive.drivers.expert import ExpertPolicy
+from clonedrive.drivers.policy import NetworkPolicy, SpeedController
 from clonedrive.episode.runner import Decision
 from clonedrive.sim.simulator import Controls, SimObservation
 
 
-class ExpertCar:
+class ExpertDriver:
     """The expert driving one car: applies its (possibly noisy) controls and labels the step
     with its clean steering; ``record`` is False where its style does not want the sample."""
 
-    def __init__(self, expert: ExpertDriver) -> None:
+    def __init__(self, expert: ExpertPolicy) -> None:
         self.expert = expert
 
     def reset(self) -> None:
@@ -35,8 +36,8 @@ class ExpertCar:
         """The expert steers from the state it sees: nothing to forget."""
 
 
-class NetworkDriver:
-    """A :class:`~clonedrive.drivers.network.NetworkPolicy` driving N cars: one batched
+class PolicyDriver:
+    """A :class:`~clonedrive.drivers.policy.NetworkPolicy` driving N cars: one batched
     prediction for all their center frames per step, and a PI speed controller per car holding
     that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed
     capped by it, with the policy's ``slow_in_curves`` lower in bends).

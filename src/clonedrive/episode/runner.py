@@ -14,7 +14,7 @@ The pieces:
   fills the episode's :class:`~clonedrive.episode.trace.RunTrace` and stops it when a rule says
   so (:attr:`Episode.stopped`).
 - a **driver** maps observations to controls. A :class:`Driver` acts for several cars at once
-  (one batched network call for N frames: :class:`~clonedrive.episode.drivers.NetworkDriver`);
+  (one batched network call for N frames: :class:`~clonedrive.episode.drivers.PolicyDriver`);
   a :class:`CarDriver` drives one car (the expert, a remote drive server, a person) and
   :class:`PerCar` makes a :class:`Driver` of one per car. ``act`` returns :class:`Decision`
   objects (or plain :class:`~clonedrive.world.vehicle.Controls`).
@@ -27,8 +27,8 @@ DAgger, for example: the network drives, the expert labels, every step's frame i
 the expert's steering::
 
     episode = Episode(sim, EpisodeRules(laps=1, set_speed_mph=15.0), track="lake")
-    runner = Runner([episode], NetworkDriver(policy, [15.0]),
-                    labeller=PerCar([ExpertCar(expert)]))
+    runner = Runner([episode], PolicyDriver(policy, [15.0]),
+                    labeller=PerCar([ExpertDriver(expert)]))
     for step in runner.steps():            # or runner.run(on_step=...)
         sink.submit(step.seen, step.label.label, step.decision.controls)
 
@@ -46,7 +46,7 @@ and render on the calling thread, a helper thread asks the driver (and labeller)
 half's decisions (a network's batched prediction). Rendering and PyTorch both release Python's
 lock, so the two run at once. Each car sees the same observations and decisions as without
 overlap; only the network's batches are halves. A driver used so must allow ``act`` for some
-cars while ``reset``/``intervened`` run for others (``NetworkDriver`` and ``PerCar`` do).
+cars while ``reset``/``intervened`` run for others (``PolicyDriver`` and ``PerCar`` do).
 """
 
 from __future__ import annotations

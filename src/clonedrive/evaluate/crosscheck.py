@@ -108,7 +108,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
     """Run the check (see the module doc); returns ``crosscheck.json``'s content.
 
     ``policy``: anything with ``predict_steering(frames (N, 160, 320, 3) uint8) -> (N,)``
-    (a :class:`~clonedrive.drivers.network.NetworkPolicy`). Raises ``FileNotFoundError`` (no
+    (a :class:`~clonedrive.drivers.policy.NetworkPolicy`). Raises ``FileNotFoundError`` (no
     log) or ``ValueError`` (a log with fewer than 2 usable centre images).
     """
     from clonedrive.base.images import ImageDecodeError, read_rgb
@@ -189,7 +189,7 @@ def crosscheck(policy: Any, log_dir: str | os.PathLike, out_dir: str | os.PathLi
 
 def _nan_count(policy: Any) -> int:
     """The NaN or infinite steering predictions ``policy`` counted so far (a
-    :class:`~clonedrive.drivers.network.NetworkPolicy` counts them, and steers 0 instead)."""
+    :class:`~clonedrive.drivers.policy.NetworkPolicy` counts them, and steers 0 instead)."""
     return int(getattr(policy, "nan_predictions", 0) or 0)
 
 

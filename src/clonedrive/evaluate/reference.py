@@ -46,8 +46,8 @@ def expert_reference(track: str | Track, speed_mph: float, *, laps: int = 1,
 
 def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: float | None
                   ) -> dict:
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
     from clonedrive.sim.simulator import SimConfig, Simulator
@@ -55,8 +55,8 @@ def _drive_expert(track, name: str, speed_mph: float, laps: int, max_seconds: fl
     with Simulator(track, SimConfig(cameras=())) as sim:
         episode = Episode(sim, EpisodeRules(laps=laps, set_speed_mph=speed_mph,
                                             max_seconds=max_seconds), track=name)
-        expert = ExpertDriver(sim.track, ExpertConfig(speed_mph=speed_mph))
-        Runner([episode], PerCar([ExpertCar(expert)])).run()
+        expert = ExpertPolicy(sim.track, ExpertConfig(speed_mph=speed_mph))
+        Runner([episode], PerCar([ExpertDriver(expert)])).run()
         return episode.trace.summary()
 
 

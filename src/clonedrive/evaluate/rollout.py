@@ -4,14 +4,14 @@ Several runs (track x speed) are driven in lock-step by the episode runner
 (:mod:`clonedrive.episode`) so that their center frames go through the network as one batch per
 control step: single-frame Keras calls dominate otherwise. Each run has its own simulator and its
 own PI speed controller; steering comes from the shared network
-(:class:`~clonedrive.episode.drivers.NetworkDriver`).
+(:class:`~clonedrive.episode.drivers.PolicyDriver`).
 
 The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event the frame the
 network saw is saved, and the car is put back on the centreline heading along the road at the set
 speed (an intervention); a run stops when its laps have been driven or its time limit passes.
 
 A run without video renders only the rows the network's crop keeps (``render_rows``, from the
-model: :mod:`clonedrive.drivers.crop`; ``full_frame`` turns it off); the rest of each frame is
+model: :mod:`clonedrive.network.crop`; ``full_frame`` turns it off); the rest of each frame is
 a constant, also in its off-road frames. A run with video renders whole frames. eval.json
 records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
 
@@ -161,7 +161,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     and are all scheduled on one pool, so no worker waits for a part to finish.
 
     With several workers (``config.workers``, default one per CPU core) and the model's file
-    (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.network.load_policy`'s
+    (``model_path``; ``model_options`` are :func:`~clonedrive.drivers.policy.load_policy`'s
     ``trust`` and ``runtime``), each part's runs are cut into groups before anything drives
     (at most ``batch`` runs, and no more groups than workers need), and each group is driven in
     lock-step in a fresh worker process that loads the model itself; the groups start longest
@@ -277,7 +277,7 @@ def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list
 
 def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
     """A worker's share of an evaluation: load the model, drive the group, return results."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
 
     config: EvalConfig = task["config"]
     options = dict(task.get("policy_options", {}))
@@ -362,7 +362,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
     """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
     cars on a second thread while the other half renders (:class:`Runner`). The group's cars on
     one track share one scene (:class:`CameraPool`)."""
-    from clonedrive.episode.drivers import NetworkDriver
+    from clonedrive.episode.drivers import PolicyDriver
     from clonedrive.sim.camera_pool import CameraPool
 
     runs: list[_Run] = []
@@ -378,7 +378,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
             saliency = VisualBackProp(policy.model)
             for run in runs:
                 run.saliency = saliency
-        driver = NetworkDriver(policy, [run.spec.speed_mph for run in runs])
+        driver = PolicyDriver(policy, [run.spec.speed_mph for run in runs])
         runner = Runner([run.episode for run in runs], driver, overlap=overlap)
         runner.reset()
         for run in runs:

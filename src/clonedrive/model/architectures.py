@@ -4,7 +4,7 @@ Every model takes one 160x320 RGB camera frame with uint8 values and returns one
 value in [-1, 1]-ish units (wheel angle / 25 deg), shape ``(N, 1)``, from the output layer
 ``steering``. With ``speed_head=True`` it has a second output, the layer ``target_speed``
 (``(N, 1)``, a Dense unit beside ``steering`` on the last hidden layer): the expert's target
-speed here divided by ``drivers.network.TARGET_SPEED_SCALE_MPH`` (1.0 = the car's top speed).
+speed here divided by ``network.contract.TARGET_SPEED_SCALE_MPH`` (1.0 = the car's top speed).
 The input layer is
 declared ``uint8``: float32 frames holding whole numbers 0..255 (what ``astype(np.float32)``
 of a camera frame gives) are converted exactly; the cast to float happens after cropping,
@@ -34,8 +34,8 @@ import numpy as np
 
 from clonedrive.base.keras_backend import import_keras
 from clonedrive.base.udacity_spec import IMAGE_HEIGHT, IMAGE_SHAPE
-from clonedrive.drivers.crop import CROP_BOTTOM_PX, CROP_TOP_PX
-from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
+from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT
+from clonedrive.network.crop import CROP_BOTTOM_PX, CROP_TOP_PX
 
 keras = import_keras()
 layers = keras.layers
@@ -238,7 +238,7 @@ def build_model(name: str, **options) -> keras.Model:
     (float, 0 = off), ``data_format`` (``channels_first``, the default, or
     ``channels_last``; see the module doc), ``speed_head`` (bool, the second output
     ``target_speed``; see the module doc), ``crop_top_px`` (rows cut from the top, default
-    :data:`clonedrive.drivers.crop.CROP_TOP_PX`) and, for ``seed`` only, ``l2``.
+    :data:`clonedrive.network.crop.CROP_TOP_PX`) and, for ``seed`` only, ``l2``.
     """
     try:
         builder = _BUILDERS[name]

@@ -108,7 +108,7 @@ def save_model_atomic(model, path: Path, notes: dict | None = None) -> None:
     with atomic_path(path) as temporary:
         model.save(temporary)
         if notes:
-            from clonedrive.drivers.driving_settings import write_notes
+            from clonedrive.network.driving_settings import write_notes
 
             write_notes(temporary, notes)
 
@@ -163,7 +163,7 @@ def export_h5(keras_path: str | os.PathLike, h5_path: str | os.PathLike, *,
     with atomic_path(h5_path) as temporary:
         model.save(temporary)
         if notes:
-            from clonedrive.drivers.driving_settings import write_notes
+            from clonedrive.network.driving_settings import write_notes
 
             write_notes(temporary, notes)
     return h5_path

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 from clonedrive.base.keras_backend import import_keras
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
-from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT, check_model, has_speed_head
+from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT, check_model, has_speed_head
 
 #: The most members one ensemble may have (each adds a network's inference per frame).
 MAX_MEMBERS = 16
@@ -28,7 +28,7 @@ MAX_MEMBERS = 16
 def build_ensemble(models: Sequence, *, name: str = "ensemble"):
     """One Keras model whose outputs are the means of ``models``' outputs (see the module doc).
 
-    Every member must pass :func:`~clonedrive.drivers.network.check_model`, and either all have
+    Every member must pass :func:`~clonedrive.network.contract.check_model`, and either all have
     the speed head or none. Raises ``ValueError`` otherwise, naming the member (by position).
     The members are renamed ``member1`` ... and frozen (an ensemble is for driving).
     """
@@ -54,7 +54,7 @@ def build_ensemble(models: Sequence, *, name: str = "ensemble"):
     steering, speed = [], []
     for position, member in enumerate(members, start=1):
         member.name = f"member{position}"  # nested models need distinct names to be saved
-        # Frozen: an ensemble is for driving, and PyTorch can then trace it (drivers.traced
+        # Frozen: an ensemble is for driving, and PyTorch can then trace it (network.traced
         # cannot embed weights that require gradients).
         member.trainable = False
         outputs = member(inputs)

@@ -171,7 +171,8 @@ def write_saliency(model_path: str | os.PathLike, sources: list[str | os.PathLik
     """
     from clonedrive.base.config import write_json_atomic
     from clonedrive.base.paths import check_output_folder, inside, safe_stem
-    from clonedrive.drivers.network import NetworkPolicy, load_model
+    from clonedrive.drivers.policy import NetworkPolicy
+    from clonedrive.network.model_file import load_model
 
     if frames_per_log < 1:
         raise ValueError(f"frames per log must be >= 1, got {frames_per_log}")

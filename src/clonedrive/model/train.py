@@ -60,9 +60,9 @@ from clonedrive.data.recipe import (
     recipe_to_toml,
 )
 from clonedrive.data.split import DEFAULT_BLOCK_S
-from clonedrive.drivers.crop import CROP_TOP_PX, visible_rows
 from clonedrive.model.checkpoints import export_h5, run_recorder_class
 from clonedrive.model.history import HISTORY_NAME, read_history
+from clonedrive.network.crop import CROP_TOP_PX, visible_rows
 
 logger = logging.getLogger(__name__)
 
@@ -190,14 +190,14 @@ def train(
     ``workers``. Without it, ``out_dir`` must not hold a previous run.
 
     ``notes``: what every model file written carries about how to drive it and the recipe
-    that made it (:func:`clonedrive.drivers.driving_settings.notes_for`); a resumed run keeps
+    that made it (:func:`clonedrive.network.driving_settings.notes_for`); a resumed run keeps
     its ``last.keras``'s notes when given none.
     """
     out = Path(out_dir)
     recipe = resolve_source(source, config.correction)
     state = _prepare_run_folder(out, config, recipe, resume)
     if notes is None and resume and (out / "last.keras").is_file():
-        from clonedrive.drivers.driving_settings import read_notes
+        from clonedrive.network.driving_settings import read_notes
 
         notes = read_notes(out / "last.keras") or None
     save_config(config, out / "config.json")
@@ -250,8 +250,8 @@ def _model(config: TrainConfig, out: Path, epochs_done: int, progress: bool):
 
     keras = import_keras()
     if epochs_done > 0:
-        from clonedrive.drivers.model_file import check_keras_file
         from clonedrive.model import consistency, losses
+        from clonedrive.network.model_file import check_keras_file
 
         check_keras_file(out / "last.keras")  # bounded before Keras allocates
         model = keras.saving.load_model(
@@ -313,8 +313,8 @@ def _compile(keras, model, config: TrainConfig) -> None:
         model.compile(optimizer=optimizer, loss=_steering_loss(config),
                       metrics=[keras.metrics.MeanSquaredError(name="mse")])
         return
-    from clonedrive.drivers.network import SPEED_OUTPUT, STEERING_OUTPUT
     from clonedrive.model.losses import speed_loss
+    from clonedrive.network.contract import SPEED_OUTPUT, STEERING_OUTPUT
 
     model.compile(
         optimizer=optimizer,
@@ -329,7 +329,7 @@ def load_initial_weights(model, path: str | os.PathLike) -> int:
     """Copy into ``model`` the weights of every layer of the model at ``path`` that has the same
     name and weight shapes (a model without a speed head can start one with it). Returns the
     number of layers copied; ``ValueError`` if none match or the file does not load."""
-    from clonedrive.drivers.network import load_model
+    from clonedrive.network.model_file import load_model
 
     source = load_model(path)
     by_name = {layer.name: layer for layer in source.layers}

@@ -226,7 +226,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
 def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
     """A run folder holds one recipe's model: :class:`DemoFolderError` if the model already
     there (to be reused or resumed) was made with another recipe or version."""
-    from clonedrive.drivers.driving_settings import read_notes
+    from clonedrive.network.driving_settings import read_notes
 
     for name in ("model.keras", "last.keras"):
         if (train_dir / name).is_file():
@@ -241,7 +241,7 @@ def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
 
 def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
     """Drive the trained model, with its own settings, through every group of runs."""
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import evaluate, format_table
 
     model_path = out / "train" / "model.keras"

@@ -55,7 +55,7 @@ from pathlib import Path
 
 from clonedrive.base.config import config_from_dict, parse_toml
 from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reject_unknown
-from clonedrive.drivers.driving_settings import DrivingSettings
+from clonedrive.network.driving_settings import DrivingSettings
 
 #: The recipes that ship with clonedrive (``<name>.toml`` in this package).
 BUILT_IN = ("best", "writeup")
@@ -164,7 +164,7 @@ class RecipeFile:
 
     def notes(self) -> dict:
         """What a model trained with this recipe carries in its file."""
-        from clonedrive.drivers.driving_settings import notes_for
+        from clonedrive.network.driving_settings import notes_for
 
         return notes_for(self.driving, self.identity())
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from clonedrive.drivers.network import Policy
+from clonedrive.drivers.policy import Policy
 
 #: A repeated warning (a bad message, a refused upgrade, a NaN prediction) is logged in full the
 #: first LOG_FIRST times for each reason, then once in LOG_EVERY, so a broken client cannot
@@ -67,7 +67,7 @@ class Connection:
 
 def policy_for_connection(policy: Policy) -> Policy:
     """The policy one connection drives with: its own fork where the policy keeps state per
-    car (:meth:`~clonedrive.drivers.network.NetworkPolicy.fork`), else the shared one."""
+    car (:meth:`~clonedrive.drivers.policy.NetworkPolicy.fork`), else the shared one."""
     fork = getattr(policy, "fork", None)
     return fork() if callable(fork) else policy
 

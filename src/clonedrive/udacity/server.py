@@ -18,7 +18,7 @@ before decoding, and at most ``max_connections`` clients are served at once.
 
 Unlike drive.py the server binds 127.0.0.1 unless told otherwise, gives each connected simulator
 its own policy state (speed controller, steering filter and hold, counters; see
-:meth:`~clonedrive.drivers.network.NetworkPolicy.fork`), so two simulators drive as each would
+:meth:`~clonedrive.drivers.policy.NetworkPolicy.fork`), so two simulators drive as each would
 alone, and never deletes an existing image folder (frames are added to it).
 
 It cannot be hijacked from a web page or starved by idle clients (:class:`DriveServerConfig`):
@@ -48,7 +48,7 @@ from websockets.asyncio.server import Server, ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
-from clonedrive.drivers.network import Policy
+from clonedrive.drivers.policy import Policy
 from clonedrive.udacity import protocol
 from clonedrive.udacity.admission import SOCKET_PATH, refusal
 from clonedrive.udacity.drive_stats import (

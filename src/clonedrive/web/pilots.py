@@ -6,7 +6,7 @@ Both follow :class:`~clonedrive.manual.pilot.Pilot`: ``controls(obs)`` for each 
 
 from __future__ import annotations
 
-from clonedrive.drivers.network import Policy
+from clonedrive.drivers.policy import Policy
 from clonedrive.sim.simulator import SimObservation
 from clonedrive.world.track import Track
 from clonedrive.world.vehicle import Controls
@@ -18,12 +18,12 @@ class ExpertPilot:
     name = "expert"
 
     def __init__(self, track: Track, *, reverse: bool = False) -> None:
-        from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
+        from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 
-        self.driver = ExpertDriver(track, ExpertConfig(reverse=reverse))
+        self.policy = ExpertPolicy(track, ExpertConfig(reverse=reverse))
 
     def controls(self, obs: SimObservation) -> Controls:
-        return self.driver.act(obs).controls_applied
+        return self.policy.act(obs).controls_applied
 
     def manual(self) -> None:
         """The expert steers from the state it sees: nothing to hold."""

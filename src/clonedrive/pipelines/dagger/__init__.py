@@ -13,11 +13,11 @@ iteration ``k = 1..iterations``:
    policy). A **safety takeover** hands the car to the expert when it is about to leave the road
    (its side, now or ``takeover_preview_s`` ahead on its heading, within ``takeover_margin_m`` of
    an edge) until it is back near the centreline, heading along the road; takeovers are
-   counted (per km, below), not hidden. The expert (:class:`~clonedrive.episode.drivers.ExpertCar`
-   as the runner's **labeller**) labels every visited frame with its steering and its target
-   speed; every frame is written as a recording, ``iter_k/data/<track>/`` (``driving_log.csv``
-   + ``IMG/`` + ``target_speed.csv``: the steering column holds the expert's label, throttle,
-   brake and speed what the car did);
+   counted (per km, below), not hidden. The expert
+   (:class:`~clonedrive.episode.drivers.ExpertDriver` as the runner's **labeller**) labels
+   every visited frame with its steering and its target speed; every frame is written as a
+   recording, ``iter_k/data/<track>/`` (``driving_log.csv`` + ``IMG/`` + ``target_speed.csv``:
+   the steering column holds the expert's label, throttle, brake and speed what the car did);
 2. **aggregates** the base recipe and every iteration's recordings so far (center camera and
    its mirror image: the labels are the expert's for exactly that view);
 3. **retrains** the network from the previous iteration's weights (``epochs`` epochs,

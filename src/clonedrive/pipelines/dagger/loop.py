@@ -32,7 +32,7 @@ def run_dagger(config: DaggerConfig, base_run: str | os.PathLike, out_dir: str |
     Returns what ``dagger.json`` holds."""
     from clonedrive.base.paths import check_output_folder
     from clonedrive.data.recipe import load_recipe
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.model.train import load_run_config
 
     base = Path(base_run)

@@ -18,7 +18,7 @@ def evaluate_model(model_path: Path, config: DaggerConfig, out: Path, references
     reused when the folder holds a finished run."""
     import json
 
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     if config.bench_splits:

@@ -14,7 +14,7 @@ class MixedDriver:
     controls with probability ``beta`` (or during a safety takeover), else the network's.
 
     The network's decisions come from one batched prediction for all cars
-    (:class:`~clonedrive.episode.drivers.NetworkDriver`); each car has its own expert at the
+    (:class:`~clonedrive.episode.drivers.PolicyDriver`); each car has its own expert at the
     wheel, called every step so that its steering filter follows the car whoever drives.
     ``Decision.detail`` says who drove: ``"network"``, ``"expert"`` or ``"takeover"``.
     """
@@ -23,9 +23,9 @@ class MixedDriver:
                  beta: float, rng: np.random.Generator, margin_m: float = 0.3,
                  preview_s: float = 1.0, release_cte_m: float = 0.5, min_takeover_s: float = 1.0,
                  control_hz: float = 15.0) -> None:
-        from clonedrive.episode.drivers import NetworkDriver
+        from clonedrive.episode.drivers import PolicyDriver
 
-        self.network = NetworkDriver(policy, set_speeds_mph)
+        self.network = PolicyDriver(policy, set_speeds_mph)
         self.experts = list(experts)
         self.beta = float(beta)
         self.rng = rng

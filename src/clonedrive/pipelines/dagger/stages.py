@@ -24,8 +24,8 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
     from clonedrive.base.paths import safe_stem
     from clonedrive.data.log_folder import prepare_log_folder
     from clonedrive.data.row_sink import RowSink
-    from clonedrive.drivers.expert import ExpertConfig, ExpertDriver
-    from clonedrive.episode.drivers import ExpertCar
+    from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
+    from clonedrive.episode.drivers import ExpertDriver
     from clonedrive.episode.rules import EpisodeRules
     from clonedrive.episode.runner import Episode, PerCar, Runner
     from clonedrive.sim.simulator import SimConfig, Simulator
@@ -48,12 +48,12 @@ def collect(policy, config: DaggerConfig, beta: float, out: Path, *, seed: int,
         episodes = [Episode(sim, rules, track=name, seed=seed)
                     for sim, name in zip(sims, config.tracks, strict=True)]
         driver = MixedDriver(
-            policy, [ExpertDriver(track, expert_config) for track in tracks],
+            policy, [ExpertPolicy(track, expert_config) for track in tracks],
             [config.speed_mph] * len(tracks), beta=beta,
             rng=np.random.default_rng([config.seed, seed]), margin_m=config.takeover_margin_m,
             preview_s=config.takeover_preview_s, release_cte_m=config.takeover_release_cte_m,
             min_takeover_s=config.takeover_min_s)
-        labeller = PerCar([ExpertCar(ExpertDriver(track, expert_config)) for track in tracks])
+        labeller = PerCar([ExpertDriver(ExpertPolicy(track, expert_config)) for track in tracks])
 
         def on_step(step) -> None:
             label = step.label
@@ -156,7 +156,7 @@ def retrain(base_config, recipe, init_from: Path, epochs: int, learning_rate: fl
         return out / "model.keras"
     config = dataclasses.replace(base_config, epochs=epochs, learning_rate=learning_rate,
                                  init_from=str(init_from), export_h5=False, seed=seed)
-    from clonedrive.drivers.driving_settings import read_notes
+    from clonedrive.network.driving_settings import read_notes
 
     # The new model is driven as the one it starts from (its file's settings and recipe).
     notes = read_notes(init_from) or None

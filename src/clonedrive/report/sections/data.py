@@ -111,7 +111,7 @@ def _data_text(ctx: ReportContext, recordings: list[_Recording]) -> list:
         described = [meanings[style] for style in dict.fromkeys(styles) if style in meanings]
         everyone = all(r.recorder for r in recordings)
         text += (("They were" if everyone else "Those made with `clonedrive record` were")
-                 + " driven by the expert driver (pure pursuit on a target line)"
+                 + " driven by the expert (pure pursuit on a target line)"
                  + (": " + "; ".join(described) if described else "") + ". ")
     if any(r.recorder is None and r.log is not None for r in recordings):
         text += ("Recordings without a recorder `config.json` (for example from the "

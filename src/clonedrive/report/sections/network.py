@@ -17,8 +17,8 @@ def build(ctx: ReportContext) -> list[Section]:
     if model_path is None or not model_path.is_file():
         return ctx.missing(title, "No `model.keras`: network section skipped.")
     from clonedrive.base.keras_backend import import_keras
-    from clonedrive.drivers.model_bounds import ModelBoundsError
-    from clonedrive.drivers.model_file import check_keras_file
+    from clonedrive.network.model_bounds import ModelBoundsError
+    from clonedrive.network.model_file import check_keras_file
 
     try:
         check_keras_file(model_path)  # a shared run folder's model may ask for all the memory

@@ -28,7 +28,7 @@ def build(ctx: ReportContext) -> list[Section]:
         return ctx.missing(title, "No trained `model.keras`: the real Udacity logs were not "
                                   "checked.")
     from clonedrive.base.paths import safe_stem
-    from clonedrive.drivers.network import load_policy
+    from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.crosscheck import CrosscheckConfig, crosscheck
 
     policy = load_policy(model_path)

@@ -1,7 +1,7 @@
 """The run's recipe and its lead: clean laps at what speed, how calm, how fast.
 
 The lead opens the report's summary. The recipe comes from ``eval.json`` (the model file's
-notes; see :mod:`clonedrive.drivers.driving_settings`). Where the recipe names another to
+notes; see :mod:`clonedrive.network.driving_settings`). Where the recipe names another to
 compare with (``compare_with``), the figures that recipe's file stores (``[measured]``,
 measured once) stand beside this run's in a short table.
 """

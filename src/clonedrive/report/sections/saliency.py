@@ -44,8 +44,8 @@ def _computed(ctx: ReportContext) -> tuple[list, str]:
                     "recording, and no overlays from `clonedrive saliency` in the run folder.")
     import numpy as np
 
-    from clonedrive.drivers.network import load_model
     from clonedrive.model.saliency import VisualBackProp, overlay
+    from clonedrive.network.model_file import load_model
     from clonedrive.report.plots import Panel, panel_grid
 
     try:

@@ -18,13 +18,13 @@ from support.hostile_files import (
 from support.measured import run_measured
 from support.student_models import student_model, write_keras2_h5
 
-from clonedrive.drivers.model_bounds import (
+from clonedrive.network.model_bounds import (
     MAX_PACKING_RATIO,
     MAX_SAMPLE_VALUES,
     MAX_UNPACKED_BYTES,
     ModelBoundsError,
 )
-from clonedrive.drivers.model_file import read_model
+from clonedrive.network.model_file import read_model
 
 #: A Dense layer of this many outputs on the tiny model's 8 features: 5.1 GB of weights.
 HUGE_UNITS = 160_000_000

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
-from clonedrive.drivers.driving_settings import (
+from clonedrive.drivers.policy import load_policy
+from clonedrive.network.driving_settings import (
     KERAS_MEMBER,
     MAX_NOTES_BYTES,
     DrivingSettings,
@@ -18,7 +19,6 @@ from clonedrive.drivers.driving_settings import (
     stored_settings,
     write_notes,
 )
-from clonedrive.drivers.network import load_policy
 
 CALM = DrivingSettings(steering_hold=0.02, mirror_average=True)
 
@@ -99,7 +99,7 @@ def test_describe_names_what_is_on():
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):
-    from clonedrive.drivers.driving_settings import copy_notes
+    from clonedrive.network.driving_settings import copy_notes
 
     source = _copy(tiny_model_path, tmp_path, "source.keras")
     write_notes(source, notes_for(CALM, {"name": "best", "version": 1}))

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from clonedrive.drivers.network import NetworkPolicy
-from clonedrive.drivers.traced import MAX_TRACES, TracedForward, forward_for
+from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.model.architectures import MODEL_NAMES, build_model
+from clonedrive.network.traced import MAX_TRACES, TracedForward, forward_for
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "udacity"
 
@@ -123,7 +123,7 @@ def test_a_model_torch_cannot_trace_predicts_and_says_why(build, error, caplog) 
 @pytest.mark.slow
 def test_traces_are_bounded_and_onnx_is_not_traced(real_frames) -> None:
     pytest.importorskip("onnxruntime")
-    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+    from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
     model = build_model("fast", seed=1)
     forward = forward_for(model)
@@ -149,7 +149,7 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
     import subprocess
     import sys
 
-    from clonedrive.drivers.traced import TracedModel
+    from clonedrive.network.traced import TracedModel
 
     model = build_model("fast", seed=5, speed_head=True)
     policy = NetworkPolicy(model, mirror_average=True)
@@ -169,8 +169,8 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
         "import pickle, sys\n"
         "import torch\n"
         "torch.set_num_threads(1)\n"
-        "from clonedrive.drivers.network import NetworkPolicy\n"
-        "from clonedrive.drivers.traced import TracedModel\n"
+        "from clonedrive.drivers.policy import NetworkPolicy\n"
+        "from clonedrive.network.traced import TracedModel\n"
         f"portable, frames = pickle.loads(open({str(tmp_path / 'portable.pkl')!r}, 'rb').read())\n"
         "policy = NetworkPolicy(TracedModel(portable), mirror_average=True)\n"
         "got = [policy.predict(frames[:count]) for count in (1, 2, 3)]\n"
@@ -199,7 +199,7 @@ def test_a_model_that_does_not_trace_exactly_is_not_made_portable(real_frames) -
     model = untraceable_model()
     assert NetworkPolicy(model).portable(2) is None  # its workers load the model file instead
     pytest.importorskip("onnxruntime")
-    from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+    from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
     assert NetworkPolicy(OnnxModel(onnx_bytes(build_model("fast", seed=1)))).portable(2) is None
 

@@ -7,8 +7,8 @@ exporter, with a dynamic batch dimension) and names the graph's outputs as the K
 input keeps its Keras name and dtype (``image_rgb``, uint8 for clonedrive's models).
 
 :class:`OnnxModel` wraps an ``onnxruntime.InferenceSession`` with the part of the Keras model
-interface the drivers use (``inputs``, ``outputs``, ``output_names``, ``predict_on_batch``), so
-:class:`~clonedrive.drivers.network.NetworkPolicy` drives with it unchanged.
+interface the policy uses (``inputs``, ``outputs``, ``output_names``, ``predict_on_batch``), so
+:class:`~clonedrive.drivers.policy.NetworkPolicy` drives with it unchanged.
 
 Needs the ``onnx`` extra (``pip install -e ".[onnx]"``): ``onnx`` and ``onnxruntime``.
 """

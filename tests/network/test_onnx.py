@@ -12,9 +12,10 @@ import pytest
 pytest.importorskip("onnx")
 pytest.importorskip("onnxruntime")
 
-from clonedrive.drivers.network import NetworkPolicy, load_model, load_policy  # noqa: E402
-from clonedrive.drivers.onnx_runtime import OnnxModel, export_onnx, onnx_bytes  # noqa: E402
+from clonedrive.drivers.policy import NetworkPolicy, load_policy  # noqa: E402
 from clonedrive.model.architectures import MODEL_NAMES, build_model  # noqa: E402
+from clonedrive.network.model_file import load_model  # noqa: E402
+from clonedrive.network.onnx_runtime import OnnxModel, export_onnx, onnx_bytes  # noqa: E402
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "udacity"
 PARITY_ABS = 1e-4

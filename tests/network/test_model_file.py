@@ -23,9 +23,10 @@ from support.student_models import (
     write_keras2_h5,
 )
 
-from clonedrive.drivers import legacy_keras, model_file
-from clonedrive.drivers.network import NetworkPolicy, load_model, load_policy
-from clonedrive.drivers.tiny_model import build_tiny_model
+from clonedrive.drivers.policy import NetworkPolicy, load_policy
+from clonedrive.network import legacy_keras, model_file
+from clonedrive.network.model_file import load_model
+from clonedrive.network.tiny_model import build_tiny_model
 
 FIXTURE = Path(__file__).parents[1] / "fixtures" / "udacity" / "lake_posix_mixed_columns"
 

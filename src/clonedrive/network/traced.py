@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.drivers.crop import visible_rows
+from clonedrive.network.crop import visible_rows
 
 #: Batch sizes traced per model at most (a lock-step group shrinks as its runs finish: one
 #: trace per size it passes through); beyond it, predict_on_batch.
@@ -137,7 +137,7 @@ class PortableModel:
     outputs: tuple
     output_names: tuple[str, ...]
     name: str
-    visible_rows: tuple[int, int] | None = None  #: the model's crop (drivers.crop)
+    visible_rows: tuple[int, int] | None = None  #: the model's crop (network.crop)
 
 
 class TracedModel:
@@ -171,7 +171,7 @@ class TracedModel:
 
 
 def _spec(tensor: Any):
-    from clonedrive.drivers.onnx_runtime import TensorSpec
+    from clonedrive.network.onnx_runtime import TensorSpec
 
     shape = tuple(dim if isinstance(dim, int) else None for dim in tensor.shape)
     return TensorSpec(str(getattr(tensor, "name", "")), shape, tensor_dtype(tensor))

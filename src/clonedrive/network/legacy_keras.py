@@ -6,7 +6,7 @@ Most Udacity students' models (2017-2020) are ``Sequential`` nets saved by Keras
 but a ``Lambda`` holds the *bytecode* of the Python that saved it (3.5-3.8), and Python 3.11
 cannot run that: ``marshal`` fails, or worse, loads garbage.
 
-:func:`load` (used by :func:`clonedrive.drivers.model_file.read_model` for a legacy ``.h5``):
+:func:`load` (used by :func:`clonedrive.network.model_file.read_model` for a legacy ``.h5``):
 
 1. without Lambda layers: Keras 3's own loader;
 2. with Lambda layers (only under ``--trust-model``): the Lambda code is first run on a small
@@ -41,7 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from clonedrive.drivers.model_file import ModelFileError, keras_load
+from clonedrive.network.errors import ModelFileError
+from clonedrive.network.keras_file import keras_load, model_config
 
 logger = logging.getLogger("clonedrive.model")
 
@@ -234,8 +235,6 @@ def rebuild(path: str | Path, config: dict | None = None, *,
     ``normalisation=(scale, offset)`` replaces every Lambda by ``Rescaling(scale, offset)``
     instead of recognising it from its bytecode (the way out for an unrecognised one).
     """
-    from clonedrive.drivers.model_file import model_config
-
     path = Path(path)
     if config is None:
         config, _ = model_config(path, "hdf5")

@@ -1,22 +1,19 @@
-"""The network driver: a Keras steering model plus a PI speed controller, as Udacity's drive.py.
+"""The network policy: a Keras steering model plus a PI speed controller, as Udacity's drive.py.
 
-The model takes the center camera as RGB uint8-valued ``(160, 320, 3)`` (all preprocessing is
-inside the model) and predicts steering in [-1, 1] (= wheel angle / 25 deg). Throttle comes from
-:class:`SpeedController`, which holds a target speed in mph.
+The model (its contract: :mod:`clonedrive.network.contract`) takes the center camera as RGB
+uint8-valued ``(160, 320, 3)`` and predicts steering in [-1, 1] (= wheel angle / 25 deg).
+Throttle comes from :class:`SpeedController`, which holds a target speed in mph.
 
-A model may have a **speed head**: a second output named ``target_speed`` (:data:`SPEED_OUTPUT`,
-after the first, ``steering``) predicting the expert's target speed for the scene, normalised by
-:data:`TARGET_SPEED_SCALE_MPH` (1.0 = the car's top speed). :class:`NetworkPolicy` then aims
-for the learned speed, capped by the set speed; a one-output model drives at the set speed (or
-with ``slow_in_curves``, the hand-made rule).
+For a model with a **speed head** (a second output,
+:data:`~clonedrive.network.contract.SPEED_OUTPUT`), :class:`NetworkPolicy` aims for the learned
+speed, capped by the set speed; a one-output model drives at the set speed (or with
+``slow_in_curves``, the hand-made rule).
 
-Outputs are checked when a model is loaded (:func:`check_model`): one output, the steering,
-shape ``(N, 1)``, or the speed head's two; any other count, name or shape is refused at load
-with the names found, instead of failing on every frame.
-
-Model files (``.keras``, ``.h5`` including students' Keras 1/2 files, ``.onnx``) are read by
-:mod:`clonedrive.drivers.model_file`; :func:`load_model` and :func:`load_policy` here are the
-entry points every command uses (``trust``: ``--trust-model``; ``runtime``: ``--runtime``).
+Model files (``.keras``, ``.h5`` including students' Keras 1/2 files, ``.onnx``) are read and
+checked by :func:`clonedrive.network.model_file.load_model`; :func:`load_policy` here is the
+entry point every command that drives uses (``trust``: ``--trust-model``; ``runtime``:
+``--runtime``), with the driving settings stored in the file
+(:mod:`clonedrive.network.driving_settings`).
 """
 
 from __future__ import annotations
@@ -29,18 +26,13 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
-from clonedrive.drivers.crop import visible_rows
-from clonedrive.drivers.driving_settings import DrivingSettings
-from clonedrive.drivers.traced import PortableModel, TracedForward, forward_for, tensor_dtype
-from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
+from clonedrive.network.contract import TARGET_SPEED_SCALE_MPH, check_model, has_speed_head
+from clonedrive.network.crop import visible_rows
+from clonedrive.network.driving_settings import DrivingSettings
+from clonedrive.network.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 
 if TYPE_CHECKING:
     import keras
-
-STEERING_OUTPUT = "steering"  #: name of a model's (first) output
-SPEED_OUTPUT = "target_speed"  #: name of the optional second output, the speed head
-#: A speed head's output 1.0 means this many mph: the car's top speed.
-TARGET_SPEED_SCALE_MPH = VehicleParams.top_speed_mps / MPH_TO_MPS
 
 
 class Policy(Protocol):
@@ -185,7 +177,7 @@ class NetworkPolicy:
         #: None when it looks at all of them or cannot say (a traced or ONNX model).
         self.visible_rows = visible_rows(model)
         #: Runs the model on a batch: traced by PyTorch where that gives the same outputs
-        #: (clonedrive.drivers.traced), else the model's predict_on_batch.
+        #: (clonedrive.network.traced), else the model's predict_on_batch.
         self.forward = forward_for(model)
         self.set_speed_mph = float(set_speed_mph)
         self.slow_in_curves = bool(slow_in_curves)
@@ -199,7 +191,7 @@ class NetworkPolicy:
         #: Which frames of the last :meth:`predict` batch had a NaN or infinite steering
         #: prediction (so a driver of several cars can count them per car).
         self.last_nonfinite = np.zeros(0, dtype=bool)
-        #: What the model file says about itself (drivers.driving_settings.read_notes): the
+        #: What the model file says about itself (network.driving_settings.read_notes): the
         #: recipe that made it; {} for a model given in memory or a file without notes.
         self.notes: dict = {}
 
@@ -244,7 +236,7 @@ class NetworkPolicy:
         """This policy's model as checked traces for every batch it predicts when it drives up to
         ``cars`` cars in lock-step (fewer as runs finish; in chunks of ``batch_size`` frames,
         each twice as many with ``mirror_average``), for a worker process to run without
-        Keras (:class:`~clonedrive.drivers.traced.TracedModel`). None where the model does not
+        Keras (:class:`~clonedrive.network.traced.TracedModel`). None where the model does not
         run traced (ONNX Runtime, a model PyTorch cannot trace exactly)."""
         if not isinstance(self.forward, TracedForward):
             return None
@@ -357,90 +349,26 @@ def model_input_dtype(model) -> np.dtype:
     return tensor_dtype(model.inputs[0])
 
 
-def has_speed_head(model: keras.Model) -> bool:
-    """True if ``model``'s second output is the speed head (:data:`SPEED_OUTPUT`)."""
-    names = list(getattr(model, "output_names", None) or [])
-    return len(names) == 2 and names[1] == SPEED_OUTPUT
-
-
-def check_model(model: keras.Model) -> None:
-    """Raise ``ValueError`` unless ``model`` takes one (None, 160, 320, 3) input and has one
-    output (steering) or two (steering, then the speed head :data:`SPEED_OUTPUT`)."""
-    inputs = getattr(model, "inputs", None)
-    if not inputs or len(inputs) != 1:
-        raise ValueError("the steering model must have exactly one input (the center camera)")
-    shape = tuple(inputs[0].shape)[1:]
-    if len(shape) != 3 or any(
-        dim is not None and dim != want for dim, want in zip(shape, IMAGE_SHAPE, strict=True)
-    ):
-        raise ValueError(
-            f"the steering model's input is {shape}, expected {IMAGE_SHAPE} (RGB, uint8 values; "
-            "preprocessing belongs inside the model)"
-        )
-    outputs = list(getattr(model, "outputs", None) or [])
-    if not outputs:
-        raise ValueError("the steering model has no output")
-    if len(outputs) == 2 and not has_speed_head(model):
-        names = ", ".join(map(str, getattr(model, "output_names", [])))
-        raise ValueError(
-            f"the steering model has two outputs ({names}); a second output must be named "
-            f"{SPEED_OUTPUT!r} (the speed head)"
-        )
-    if len(outputs) > 2:
-        raise ValueError(
-            f"the steering model has {len(outputs)} outputs; expected 1 (steering) or 2 "
-            f"(steering, {SPEED_OUTPUT})"
-        )
-    names = [str(name) for name in (getattr(model, "output_names", None) or [])]
-    for index, output in enumerate(outputs):
-        shape = tuple(getattr(output, "shape", ()))[1:]
-        if shape not in ((1,), (None,)):
-            label = names[index] if index < len(names) else f"output {index}"
-            raise ValueError(
-                f"the steering model's {label!r} output has shape {shape} per image, "
-                "expected (1,): one value"
-            )
-
-
-def load_model(
-    path: str | Path, *, trust: bool = False, runtime: str = "auto"
-) -> keras.Model:
-    """Load a steering model for inference and check it (:func:`check_model`).
-
-    ``path``: ``.keras``, ``.h5`` (Keras 3, or a student's Keras 1/2 file) or ``.onnx``.
-    ``trust``: allow ``Lambda`` layers (Python code in the file; ``--trust-model``).
-    ``runtime``: ``"auto"`` (ONNX Runtime for ``.onnx``, else Keras), ``"keras"`` or
-    ``"onnx"`` (a Keras file is converted to ONNX in memory). Raises ``FileNotFoundError`` or
-    ``ValueError`` with a one-line message naming the file.
-    """
-    from clonedrive.drivers.model_file import read_model
-
-    model = read_model(path, trust=trust, runtime=runtime)
-    try:
-        check_model(model)
-    except ValueError as error:
-        raise ValueError(f"{path}: {error}") from None
-    return model
-
-
 def load_policy(
     path: str | Path, *, trust: bool = False, runtime: str = "auto",
     portable: PortableModel | None = None, **kwargs: object
 ) -> NetworkPolicy:
-    """A :class:`NetworkPolicy` for the model file at ``path`` (see :func:`load_model` for
-    ``trust`` and ``runtime``), driven with the settings stored in the file
-    (:mod:`clonedrive.drivers.driving_settings`; drive.py's where it has none); ``kwargs`` go
-    to its constructor and override them, a ``None`` value leaving the file's setting.
+    """A :class:`NetworkPolicy` for the model file at ``path`` (see
+    :func:`~clonedrive.network.model_file.load_model` for ``trust`` and ``runtime``), driven with
+    the settings stored in the file (:mod:`clonedrive.network.driving_settings`; drive.py's where
+    it has none); ``kwargs`` go to its constructor and override them, a ``None`` value leaving
+    the file's setting.
     ``portable``: that model's checked traces (:meth:`NetworkPolicy.portable`), run by PyTorch
     alone instead of reading the file with Keras (a worker process's start); the same outputs
     to the last bit. The policy's ``notes`` are the file's notes (its recipe, if it has one)."""
-    from clonedrive.drivers.driving_settings import read_notes, settings_in
+    from clonedrive.network.driving_settings import read_notes, settings_in
+    from clonedrive.network.model_file import load_model
 
     notes = read_notes(path)
     settings = settings_in(notes, path) or DrivingSettings()
     options = {**settings.options(), **{k: v for k, v in kwargs.items() if v is not None}}
     if portable is not None:
-        from clonedrive.drivers.traced import TracedModel
+        from clonedrive.network.traced import TracedModel
 
         policy = NetworkPolicy(TracedModel(portable), **options)
     else:

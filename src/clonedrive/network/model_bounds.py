@@ -4,7 +4,7 @@ A model file is small on disk, and what it asks for is not: a ``.keras`` archive
 weights member of zeros that inflates a thousandfold, an HDF5 dataset can be compressed the
 same way, and the layer configuration can declare a ``Dense`` layer of a hundred million units,
 whose weights Keras allocates while it builds the network -- before it reads a single stored
-weight. Four checks, in the order :func:`clonedrive.drivers.model_file.read_model` makes them:
+weight. Four checks, in the order :func:`clonedrive.network.model_file.read_model` makes them:
 
 1. :func:`check_archive`: the zip members' declared unpacked sizes (from the archive's central
    directory; Python's ``zipfile`` never yields more than that) against
@@ -28,7 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from clonedrive.drivers.model_file import ModelFileError
+from clonedrive.network.errors import ModelFileError
 
 #: The most a model file may unpack to [bytes]: all members of a ``.keras`` archive together,
 #: and all weights of an HDF5 file. NVIDIA's network is 1 MB of weights; the largest student

@@ -13,7 +13,7 @@ into the model file, so copying the one file keeps them:
 Both hold ``{"driving": {...}, "recipe": {"name": ..., "version": ...}}``. A file without them (a
 student's model, an old clonedrive model) drives with :class:`DrivingSettings`' defaults, which
 are Udacity's ``drive.py``: none of these, steering passed straight to the wheel.
-:func:`clonedrive.drivers.network.load_policy` reads them; options a command is given override
+:func:`clonedrive.drivers.policy.load_policy` reads them; options a command is given override
 them one by one.
 """
 

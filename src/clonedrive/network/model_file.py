@@ -1,17 +1,18 @@
 """Reading a steering-model file: ``.keras``, ``.h5`` (Keras 3, or a student's Keras 1/2) or ONNX.
 
-:func:`read_model` is what every command uses (through :func:`clonedrive.drivers.network.
-load_model`, which also checks the model's inputs and outputs). It looks at the file before
-handing it to Keras, so that each ordinary mistake gets one line naming the file:
+:func:`load_model` is what every command uses: :func:`read_model`, then the model's inputs and
+outputs checked (:func:`clonedrive.network.contract.check_model`). :func:`read_model` looks at
+the file before handing it to Keras, so that each ordinary mistake gets one line naming the file:
 
 * a file that is not a model: a ``.keras`` file is a zip archive holding ``config.json``, an
   ``.h5`` file starts with the HDF5 signature; anything else is "not a Keras model file" (Keras
   itself says "File not found" for a file that exists);
 * a ``.keras`` file that is really HDF5, or the other way round (renamed files);
-* a file larger than :data:`MAX_MODEL_BYTES`, or a config larger than :data:`MAX_CONFIG_BYTES`;
+* a file larger than :data:`MAX_MODEL_BYTES`, or a config larger than
+  :data:`~clonedrive.network.keras_file.MAX_CONFIG_BYTES`;
 * a file that would take more memory than it holds -- members or weights that inflate, a
   configuration declaring more weights than the file stores -- checked before Keras allocates
-  anything (:mod:`clonedrive.drivers.model_bounds`);
+  anything (:mod:`clonedrive.network.model_bounds`);
 * ``Lambda`` layers (Python code stored in the file): refused unless ``trust`` (the
   ``--trust-model`` flag), which logs :data:`TRUST_WARNING`.
 
@@ -20,19 +21,25 @@ Students' models (2017-2020) are Keras 1 or 2 ``.h5`` files, most with
 saved it (3.5-3.8), which Python 3.11 cannot run. With ``trust``, the code is first tried in a
 separate process; if it does not run there, the network is rebuilt from its layer list without
 running any stored code and the weights are loaded by layer name
-(:mod:`clonedrive.drivers.legacy_keras`).
+(:mod:`clonedrive.network.legacy_keras`).
 
 ``runtime="onnx"`` (or a ``.onnx`` file) runs the model with ONNX Runtime
-(:mod:`clonedrive.drivers.onnx_runtime`).
+(:mod:`clonedrive.network.onnx_runtime`).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from clonedrive.network.contract import check_model
+from clonedrive.network.errors import ModelFileError, one_line
+from clonedrive.network.keras_file import file_kind, keras_load, lambda_layer_names, model_config
+
+if TYPE_CHECKING:
+    import keras
 
 logger = logging.getLogger("clonedrive.model")
 
@@ -41,13 +48,6 @@ ONNX_SUFFIX = ".onnx"
 RUNTIMES = ("auto", "keras", "onnx")
 #: Larger model files are refused before reading (a student's NVIDIA net is 1-400 MB).
 MAX_MODEL_BYTES = 2 << 30
-#: The JSON layer configuration inside a model file (a few tens of KB in practice).
-MAX_CONFIG_BYTES = 16 << 20
-
-ZIP_SIGNATURE = b"PK\x03\x04"
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-#: HDF5 allows a user block before the superblock: the signature is at 0, 512, 1024, 2048, ...
-_HDF5_OFFSETS = (0, 512, 1024, 2048, 4096)
 
 TRUST_WARNING = """\
 WARNING: --trust-model: {path} has Lambda layers ({names}): Python code stored in the file.
@@ -55,13 +55,29 @@ WARNING: Keras safe mode is off for this file. Code in a model file runs with yo
 WARNING: use this only for a model you made yourself or got from someone you trust."""
 
 
-class ModelFileError(ValueError):
-    """A model file that cannot be used; the message names the file."""
+def load_model(
+    path: str | Path, *, trust: bool = False, runtime: str = "auto"
+) -> keras.Model:
+    """Load a steering model for inference and check it
+    (:func:`~clonedrive.network.contract.check_model`).
+
+    ``path``: ``.keras``, ``.h5`` (Keras 3, or a student's Keras 1/2 file) or ``.onnx``.
+    ``trust``: allow ``Lambda`` layers (Python code in the file; ``--trust-model``).
+    ``runtime``: ``"auto"`` (ONNX Runtime for ``.onnx``, else Keras), ``"keras"`` or
+    ``"onnx"`` (a Keras file is converted to ONNX in memory). Raises ``FileNotFoundError`` or
+    ``ValueError`` with a one-line message naming the file.
+    """
+    model = read_model(path, trust=trust, runtime=runtime)
+    try:
+        check_model(model)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
+    return model
 
 
 def read_model(path: str | Path, *, trust: bool = False, runtime: str = "auto") -> Any:
     """The model in ``path``, ready for ``predict_on_batch`` (a Keras model, or an
-    :class:`~clonedrive.drivers.onnx_runtime.OnnxModel`). See the module doc.
+    :class:`~clonedrive.network.onnx_runtime.OnnxModel`). See the module doc.
 
     Raises ``FileNotFoundError`` (no such file) or :class:`ModelFileError`.
     """
@@ -86,12 +102,12 @@ def read_model(path: str | Path, *, trust: bool = False, runtime: str = "auto") 
     if suffix == ONNX_SUFFIX:
         if runtime == "keras":
             raise ModelFileError(f"{path}: an ONNX model runs with --runtime onnx, not keras")
-        from clonedrive.drivers.onnx_runtime import OnnxModel
+        from clonedrive.network.onnx_runtime import OnnxModel
 
         return OnnxModel.from_file(path)
     model = _read_keras(path, trust=trust)
     if runtime == "onnx":
-        from clonedrive.drivers.onnx_runtime import OnnxModel, onnx_bytes
+        from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
         return OnnxModel(onnx_bytes(model), source=f"{path} (converted to ONNX)")
     return model
@@ -100,23 +116,12 @@ def read_model(path: str | Path, *, trust: bool = False, runtime: str = "auto") 
 # --------------------------------------------------------------------------- Keras files
 
 
-def file_kind(path: Path) -> str:
-    """``"zip"`` (a .keras archive), ``"hdf5"`` or ``"other"``, from the file's first bytes."""
-    with open(path, "rb") as handle:
-        head = handle.read(max(_HDF5_OFFSETS) + len(HDF5_SIGNATURE))
-    if head.startswith(ZIP_SIGNATURE):
-        return "zip"
-    if any(head[offset : offset + 8] == HDF5_SIGNATURE for offset in _HDF5_OFFSETS):
-        return "hdf5"
-    return "other"
-
-
 def _read_keras(path: Path, *, trust: bool) -> Any:
     kind, config, lambdas, legacy = _checked_keras(path, trust=trust)
     if lambdas:
         logger.warning(TRUST_WARNING.format(path=path, names=", ".join(lambdas)))
     if legacy:
-        from clonedrive.drivers import legacy_keras
+        from clonedrive.network import legacy_keras
 
         return legacy_keras.load(path, config, lambdas=lambdas)
     return keras_load(path, safe_mode=not lambdas)
@@ -154,7 +159,7 @@ def _checked_keras(path: Path, *, trust: bool) -> tuple[str, dict, list[str], bo
             "which Keras safe mode refuses to run. If you trust where the file came from, add "
             "--trust-model"
         )
-    from clonedrive.drivers import legacy_keras
+    from clonedrive.network import legacy_keras
 
     legacy = kind == "hdf5" and legacy_keras.is_legacy_version(keras_version)
     _check_memory(path, kind, config, lambdas=lambdas, legacy=legacy)
@@ -171,8 +176,8 @@ def _check_memory(path: Path, kind: str, config: dict, *, lambdas: list[str],
                   legacy: bool) -> None:
     """Refuse a file whose configuration declares more weights than it stores, or whose
     weights unpack past the limits, before Keras allocates anything
-    (:mod:`clonedrive.drivers.model_bounds`)."""
-    from clonedrive.drivers import model_bounds
+    (:mod:`clonedrive.network.model_bounds`)."""
+    from clonedrive.network import model_bounds
 
     stored = _stored_weight_bytes(path, kind)
     model_bounds.check_declared_shapes(path, config)
@@ -182,7 +187,7 @@ def _check_memory(path: Path, kind: str, config: dict, *, lambdas: list[str],
     else:
         builders = [model_bounds.keras_h5_network(config, safe_mode=safe_mode)]
     if legacy:  # what legacy_keras.load falls back to, and the only way for stored code
-        from clonedrive.drivers.legacy_keras import rebuilt_network
+        from clonedrive.network.legacy_keras import rebuilt_network
 
         rebuilt = [lambda: rebuilt_network(path, config)[0]]
         builders = rebuilt if lambdas else [*rebuilt, *builders]
@@ -195,13 +200,13 @@ def _check_memory(path: Path, kind: str, config: dict, *, lambdas: list[str],
             continue
         model_bounds.check_declared(path, declared, stored)
         return
-    raise ModelFileError(f"{path}: cannot load the model: {_one_line(first_error)}")
+    raise ModelFileError(f"{path}: cannot load the model: {one_line(first_error)}")
 
 
 def _stored_weight_bytes(path: Path, kind: str) -> int:
     """Bytes of the weights ``path`` stores (HDF5 dataset shapes; the members' unpacked sizes
     for an archive that stores them otherwise), checked against the limits."""
-    from clonedrive.drivers.model_bounds import WEIGHTS_MEMBER, stored_weight_bytes
+    from clonedrive.network.model_bounds import WEIGHTS_MEMBER, stored_weight_bytes
 
     if kind == "hdf5":
         return stored_weight_bytes(path, path, path.stat().st_size)
@@ -214,120 +219,8 @@ def _stored_weight_bytes(path: Path, kind: str) -> int:
             return stored_weight_bytes(path, member, info.file_size)
 
 
-def keras_load(path: Path, *, safe_mode: bool) -> Any:
-    """``keras.models.load_model`` for inference, its errors as :class:`ModelFileError`."""
-    from clonedrive.base.keras_backend import import_keras
-
-    keras = import_keras()
-    try:
-        return keras.models.load_model(path, compile=False, safe_mode=safe_mode)
-    except (ValueError, TypeError, OSError, KeyError, AttributeError, IndexError,
-            RecursionError, zipfile.BadZipFile) as error:
-        raise ModelFileError(f"{path}: cannot load the model: {_one_line(error)}") from None
-
-
-def model_config(path: Path, kind: str) -> tuple[dict, str | None]:
-    """``(the model's layer configuration, the Keras version that saved it or None)``, read as
-    JSON without building anything."""
-    if kind == "zip":
-        text, version = _zip_config(path)
-    else:
-        text, version = _hdf5_config(path)
-    try:
-        config = json.loads(text)
-    except (ValueError, RecursionError) as error:
-        raise ModelFileError(f"{path}: the model configuration is not JSON ({error})") from None
-    if not isinstance(config, dict):
-        raise ModelFileError(f"{path}: the model configuration is not a JSON object")
-    return config, version
-
-
-def _zip_config(path: Path) -> tuple[str, str | None]:
-    from clonedrive.drivers.model_bounds import check_archive
-
-    try:
-        with zipfile.ZipFile(path) as archive:
-            check_archive(path, archive)
-            names = set(archive.namelist())
-            if "config.json" not in names:
-                raise ModelFileError(
-                    f"{path}: not a Keras model file (a zip archive without config.json)"
-                )
-            text = _zip_member(archive, "config.json", path)
-            version = None
-            if "metadata.json" in names:
-                try:
-                    metadata = json.loads(_zip_member(archive, "metadata.json", path))
-                    version = str(metadata.get("keras_version")) if isinstance(
-                        metadata, dict) else None
-                except ValueError:
-                    version = None
-            return text, version
-    except zipfile.BadZipFile as error:
-        raise ModelFileError(f"{path}: not a Keras model file (broken zip: {error})") from None
-
-
-def _zip_member(archive: zipfile.ZipFile, name: str, path: Path) -> str:
-    info = archive.getinfo(name)
-    if info.file_size > MAX_CONFIG_BYTES:
-        raise ModelFileError(
-            f"{path}: {name} is {info.file_size} bytes, over the {MAX_CONFIG_BYTES} byte limit"
-        )
-    with archive.open(info) as member:
-        data = member.read(MAX_CONFIG_BYTES + 1)
-    if len(data) > MAX_CONFIG_BYTES:
-        raise ModelFileError(f"{path}: {name} is over the {MAX_CONFIG_BYTES} byte limit")
-    return data.decode("utf-8", errors="replace")
-
-
-def _hdf5_config(path: Path) -> tuple[str, str | None]:
-    import h5py
-
-    try:
-        with h5py.File(path, "r") as handle:
-            raw = handle.attrs.get("model_config")
-            version = handle.attrs.get("keras_version")
-    except OSError as error:
-        raise ModelFileError(f"{path}: not a readable HDF5 model file ({error})") from None
-    if raw is None:
-        raise ModelFileError(
-            f"{path}: an HDF5 file without a model configuration (weights only?). Save the "
-            "whole model (model.save), or build the network in Python and call "
-            "model.load_weights on this file"
-        )
-    if isinstance(raw, bytes):
-        raw = raw.decode("utf-8", errors="replace")
-    if isinstance(version, bytes):
-        version = version.decode("ascii", errors="replace")
-    text = str(raw)
-    if len(text) > MAX_CONFIG_BYTES:
-        raise ModelFileError(f"{path}: the model configuration is over {MAX_CONFIG_BYTES} bytes")
-    return text, None if version is None else str(version)
-
-
-def lambda_layer_names(config: Any) -> list[str]:
-    """Names of the ``Lambda`` layers anywhere in a model configuration (Keras 1, 2 or 3)."""
-    names: list[str] = []
-    stack = [config]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, dict):
-            if node.get("class_name") == "Lambda":
-                layer = node.get("config")
-                name = layer.get("name") if isinstance(layer, dict) else None
-                names.append(str(name) if name is not None else "unnamed")
-            stack.extend(reversed(list(node.values())))
-        elif isinstance(node, list):
-            stack.extend(reversed(node))
-    return names
-
-
 def _head_text(path: Path) -> str:
     with open(path, "rb") as handle:
         head = handle.read(8)
     return "0x" + head.hex() if head else "nothing"
 
-
-def _one_line(error: BaseException) -> str:
-    text = " ".join(str(error).split())
-    return text if len(text) <= 300 else text[:300] + "..."

@@ -82,7 +82,7 @@ def _base_run(sandbox: Path, model: Path, recipe_text: str) -> Path:
     """A training run folder as dagger reads it: model, config and recipe."""
     sys.path.insert(0, str(ROOT / "src"))
     from clonedrive.base.config import save_config
-    from clonedrive.model.train import TrainConfig
+    from clonedrive.model.train_config import TrainConfig
 
     base = sandbox / f"base_{len(list(sandbox.glob('base_*')))}"
     base.mkdir()

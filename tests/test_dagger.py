@@ -17,7 +17,8 @@ from clonedrive.drivers.expert import ExpertConfig, ExpertPolicy
 from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner
-from clonedrive.model.train import TrainConfig, train
+from clonedrive.model.train import train
+from clonedrive.model.train_config import TrainConfig
 from clonedrive.pipelines.dagger.config import DaggerConfig
 from clonedrive.pipelines.dagger.figures import format_table
 from clonedrive.pipelines.dagger.mixed_driver import MixedDriver

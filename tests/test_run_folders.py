@@ -17,7 +17,7 @@ import pytest
 from support.cli_process import SRC, refused, run_clonedrive
 
 from clonedrive.base.config import config_to_dict, save_config, write_json_atomic
-from clonedrive.model.train import TrainConfig
+from clonedrive.model.train_config import TrainConfig
 from clonedrive.pipelines.dagger.config import DaggerConfig
 from clonedrive.pipelines.dagger.loop import check_rerun
 

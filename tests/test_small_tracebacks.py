@@ -107,7 +107,7 @@ def test_a_deeply_nested_recipe_or_suite_is_refused_in_one_line(
 def test_a_run_folder_with_a_deeply_nested_recipe_is_refused_in_one_line(
         tmp_path: Path, tiny_model_path: Path) -> None:
     from clonedrive.base.config import save_config
-    from clonedrive.model.train import TrainConfig
+    from clonedrive.model.train_config import TrainConfig
 
     run = tmp_path / "run"
     shutil.copytree(FIXTURE, tmp_path / "data")

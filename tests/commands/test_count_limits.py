@@ -78,7 +78,7 @@ def test_a_real_train_process_refuses_a_billion_epochs_before_allocating(tmp_pat
 
 def test_a_recipe_is_held_to_the_same_training_maxima(tmp_path) -> None:
     """A recipe file sets training counts too: TrainConfig states the maxima."""
-    from clonedrive.model.train import MAX_COUNTS, TrainConfig
+    from clonedrive.model.train_config import MAX_COUNTS, TrainConfig
 
     with pytest.raises(ValueError, match=f"epochs must be at most {MAX_COUNTS['epochs']:,}"):
         TrainConfig(epochs=int(HUGE))

@@ -155,7 +155,7 @@ def test_a_cache_of_the_rows_training_reads_gives_the_same_batches(tmp_path: Pat
     """A cache keeping only the rows a cropping network and its augmentation read is less than
     half the size, and the batches' visible rows are the same to the bit."""
     from clonedrive.data.dataset import cached_rows
-    from clonedrive.model.train import TrainConfig
+    from clonedrive.model.train_config import TrainConfig
 
     samples = expand(default_recipe_for([LAKE]))
     config = TrainConfig(crop_top_px=60)

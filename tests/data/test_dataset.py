@@ -14,7 +14,7 @@ from clonedrive.data.batches import ImageCache, read_rgb
 from clonedrive.data.dataset import CACHE_FILE, DatasetConfig, build_dataset
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.data.recipe import default_recipe_for
-from clonedrive.model.train import TrainConfig
+from clonedrive.model.train_config import TrainConfig
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 LAKE = FIXTURES / "lake_posix_mixed_columns"

@@ -1,5 +1,5 @@
 """A driving log of millions of short rows is refused from its line count, before any row is
-parsed (data.driving_log.MAX_LOG_ROWS); one at the limit is read in bounded memory."""
+parsed (data.line_count.MAX_LOG_ROWS); one at the limit is read in bounded memory."""
 
 from __future__ import annotations
 
@@ -10,11 +10,10 @@ from support.hostile_files import log_of_many_rows
 from support.measured import run_measured
 
 from clonedrive.data.driving_log import (
-    MAX_LOG_ROWS,
     DrivingLogError,
-    count_lines,
     read_driving_log,
 )
+from clonedrive.data.line_count import MAX_LOG_ROWS, count_lines
 
 UDACITY_IMAGES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "stationary" / "IMG"
 #: Peak memory a clonedrive process may reach on a log at (or past) the limit [MB].

@@ -6,10 +6,10 @@ import pytest
 
 from clonedrive.drivers.policy import NetworkPolicy
 from clonedrive.episode.trace import autonomy_pct, smoothness
+from clonedrive.evaluate.results import format_table
 from clonedrive.evaluate.rollout import (
     EvalConfig,
     evaluate,
-    format_table,
     hud_frame,
     run_specs,
 )

@@ -18,7 +18,8 @@ from clonedrive.data.recipe import default_recipe_for, expand
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.policy import load_policy
 from clonedrive.model.consistency import ConsistentMSE
-from clonedrive.model.train import TrainConfig, train
+from clonedrive.model.train import train
+from clonedrive.model.train_config import TrainConfig
 
 
 @pytest.fixture(scope="module")

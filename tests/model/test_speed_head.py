@@ -14,7 +14,8 @@ import pytest
 from clonedrive.data.recorder import RecordConfig, record
 from clonedrive.drivers.policy import NetworkPolicy, load_policy
 from clonedrive.model.architectures import MODEL_NAMES, build_model
-from clonedrive.model.train import TrainConfig, train
+from clonedrive.model.train import train
+from clonedrive.model.train_config import TrainConfig
 from clonedrive.network.contract import (
     SPEED_OUTPUT,
     TARGET_SPEED_SCALE_MPH,

@@ -16,7 +16,8 @@ from clonedrive.base.config import load_config
 from clonedrive.cli import main
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.model.checkpoints import run_recorder_class
-from clonedrive.model.train import TrainConfig, train
+from clonedrive.model.train import train
+from clonedrive.model.train_config import TrainConfig
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 OUTPUTS = {

@@ -13,7 +13,7 @@ from support.cli_process import run_clonedrive
 
 from clonedrive.base.config import save_config
 from clonedrive.data.recipe import default_recipe_for, load_recipe, recipe_to_toml
-from clonedrive.model.train import TrainConfig
+from clonedrive.model.train_config import TrainConfig
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "stationary"
 NASTY = 'a\n# injected | x <b> "q" \\ ]] \u00e9'

@@ -27,7 +27,8 @@ def run_dir(tmp_path_factory) -> Path:
     from clonedrive.data.recorder import RecordConfig, record
     from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.evaluate.rollout import EvalConfig, evaluate
-    from clonedrive.model.train import TrainConfig, train
+    from clonedrive.model.train import train
+    from clonedrive.model.train_config import TrainConfig
     from clonedrive.network.tiny_model import build_tiny_model
 
     run = tmp_path_factory.mktemp("run")

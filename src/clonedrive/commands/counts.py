@@ -16,10 +16,10 @@ import math
 from collections.abc import Callable
 
 from clonedrive.base.udacity_spec import IMAGE_HEIGHT
-from clonedrive.data.driving_log import MAX_LOG_ROWS
+from clonedrive.data.line_count import MAX_LOG_ROWS
 from clonedrive.evaluate.config import MAX_COUNTS as EVALUATE_MAX
 from clonedrive.evaluate.video import FPS_RANGE
-from clonedrive.model.train import MAX_COUNTS as TRAIN_MAX
+from clonedrive.model.train_config import MAX_COUNTS as TRAIN_MAX
 
 #: Laps of one run (record, autonomous, dagger's recording and evaluation laps).
 MAX_LAPS = EVALUATE_MAX["laps"]

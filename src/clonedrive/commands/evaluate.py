@@ -78,7 +78,8 @@ def run(args) -> int:
     from clonedrive.base.paths import prepare_output_folder
     from clonedrive.commands.output_claim import claim
     from clonedrive.evaluate.config import EvalConfig
-    from clonedrive.evaluate.rollout import evaluate, format_table
+    from clonedrive.evaluate.results import format_table
+    from clonedrive.evaluate.rollout import evaluate
     from clonedrive.world.catalog import load_track
     from clonedrive.world.track import TrackError
 

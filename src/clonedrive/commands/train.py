@@ -48,7 +48,7 @@ EXAMPLES = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from clonedrive.model.train import TrainConfig
+    from clonedrive.model.train_config import TrainConfig
 
     d = TrainConfig()
     given = argparse.SUPPRESS  # an option not given leaves no attribute (see _overrides)
@@ -222,7 +222,8 @@ def _plan(args: argparse.Namespace):
     fine-tune's own settings stay); a resumed one-stage run keeps its own."""
     import dataclasses
 
-    from clonedrive.model.train import TrainConfig, load_run_config
+    from clonedrive.model.train import load_run_config
+    from clonedrive.model.train_config import TrainConfig
     from clonedrive.recipes.book import DEFAULT_RECIPE, is_whole_recipe, load_recipe_file
 
     # The options alone first, so that a refused value is named as the command line's.

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from clonedrive.base.images import ImageDecodeError, decode_rgb
 from clonedrive.base.udacity_spec import IMAGE_SHAPE
+from clonedrive.data.line_count import MAX_LOG_ROWS, count_lines
 
 CAMERAS = ("center", "left", "right")
 CSV_NAME = "driving_log.csv"
@@ -44,11 +45,6 @@ VERIFY_MODES = ("none", "exists", "decode")
 #: Largest driving_log.csv read [bytes]: about 300,000 rows of absolute paths, 5.5 hours at
 #: 15 Hz (the Udacity sample data set is 1.5 MB). Reading one at the cap peaks near 0.6 GB.
 MAX_LOG_BYTES = 64 << 20
-#: Most lines a driving_log.csv may have (header and blank lines included): 9 hours at 15 Hz,
-#: ten times the longest real recording (Udacity logs hold 10,000-50,000 rows). Short rows fit
-#: millions into :data:`MAX_LOG_BYTES`, and each row read costs about 1.5 KB here and more in
-#: ``train`` (1,000,000 rows: 1.5 GB for ``check``), so they are counted before any is parsed.
-MAX_LOG_ROWS = 500_000
 #: Bins of the steering histogram ``record`` and ``check`` print (over [-1, 1]).
 STEERING_HISTOGRAM_BINS = 11
 #: Longest image file name [bytes] that file systems allow.
@@ -283,13 +279,6 @@ def _read_log_bytes(csv_path: Path) -> bytes:
     if b"\x00" in head:
         raise DrivingLogError(f"{csv_path}: not a CSV file: binary data (NUL bytes)")
     return raw
-
-
-def count_lines(raw: bytes) -> int:
-    """Lines in ``raw`` as the reader splits them: LF, CRLF or a lone CR each end one, and
-    text after the last ending is one more."""
-    lines = raw.count(b"\n") + raw.count(b"\r") - raw.count(b"\r\n")
-    return lines + 1 if raw and not raw.endswith((b"\n", b"\r")) else lines
 
 
 def _check_line_count(csv_path: Path, raw: bytes) -> None:

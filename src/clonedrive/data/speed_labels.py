@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from clonedrive.base.output_files import open_output_fd
-from clonedrive.data.driving_log import MAX_LOG_ROWS, count_lines
+from clonedrive.data.line_count import MAX_LOG_ROWS, count_lines
 
 LABELS_NAME = "target_speed.csv"
 LABELS_HEADER = "center,target_speed_mph"

@@ -39,6 +39,7 @@ from clonedrive.episode.rules import EpisodeRules
 from clonedrive.episode.runner import Episode, Runner, Step
 from clonedrive.evaluate.config import EvalConfig, RunSpec, run_specs
 from clonedrive.evaluate.reference import against_expert
+from clonedrive.evaluate.results import totals
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
@@ -127,7 +128,7 @@ def _report_header(policy, first: EvalConfig, model_path: str | None) -> dict:
         **_rendering(policy, first),
         "complete": False,
         "runs": [],
-        "totals": _totals([]),
+        "totals": totals([]),
     }
 
 
@@ -207,7 +208,7 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
                                          track=resolved[specs[index].track]))
         finished[index] = result
         report["runs"] = [finished[i] for i in sorted(finished)]
-        report["totals"] = _totals(report["runs"])
+        report["totals"] = totals(report["runs"])
         report["complete"] = len(finished) == len(specs)
         write_json_atomic(out / "eval.json", report)
 
@@ -454,62 +455,3 @@ def _finish(run: _Run, out: Path) -> dict:
     if run.video is not None:
         summary["video"] = f"{run.name}.mp4"
     return summary
-
-
-def _totals(results: list[dict]) -> dict:
-    def group(rows):
-        laps_target = sum(r["laps_target"] for r in rows)
-        laps = sum(min(r["laps_completed"], r["laps_target"]) for r in rows)
-        return {
-            "runs": len(rows),
-            "laps_completed": laps,
-            "laps_target": laps_target,
-            "laps_completed_pct": round(100.0 * laps / laps_target, 1) if laps_target else 0.0,
-            "interventions": sum(r["interventions"] for r in rows),
-        }
-
-    seen = [r for r in results if not r["unseen"]]
-    unseen = [r for r in results if r["unseen"]]
-    totals = {"all": group(results)}
-    if seen:
-        totals["builtin"] = group(seen)
-    if unseen:
-        totals["unseen"] = group(unseen)
-    return totals
-
-
-def format_table(report: dict) -> str:
-    """The printed results table; ``lap/exp`` and ``rate/exp``: lap time and steering rate over
-    the expert's on the same track and cap."""
-    head = (f"{'track':<10}{'mph':>5}{'laps':>7}{'interv.':>9}{'auton.%':>9}{'mean|CTE|':>10}"
-            f"{'max|CTE|':>9}{'smooth':>8}{'speed':>7}{'dist m':>8}{'lap/exp':>8}{'rate/exp':>9}")
-    lines = [head, "-" * len(head)]
-
-    def ratio(value) -> str:
-        return "-" if value is None else f"{value:.2f}"
-
-    for r in report["runs"]:
-        laps = f"{r['laps_completed']}/{r['laps_target']}"
-        lines.append(
-            f"{r['track']:<10}{r['speed_mph']:>5g}{laps:>7}{r['interventions']:>9}"
-            f"{r['autonomy_pct']:>9.1f}{r['mean_abs_cte_m']:>10.2f}{r['max_abs_cte_m']:>9.2f}"
-            f"{r['smoothness']:>8.2f}{r['mean_speed_mph']:>7.1f}{r['distance_m']:>8.0f}"
-            f"{ratio(r.get('lap_time_ratio')):>8}{ratio(r.get('steering_rate_per_s_ratio')):>9}")
-    nan_runs = [r for r in report["runs"] if r.get("nan_predictions")]
-    for r in nan_runs:
-        lines.append(f"warning: {r['track']} at {r['speed_mph']:g} mph: the model predicted NaN "
-                     f"or infinite steering on {r['nan_predictions']} frame(s) (driven straight)")
-    for key, total in report["totals"].items():
-        lines.append(f"{key}: {total['laps_completed']}/{total['laps_target']} laps "
-                     f"({total['laps_completed_pct']:.0f} %), {total['interventions']} "
-                     "interventions")
-    return "\n".join(lines)
-
-
-def is_finite_report(report: dict) -> bool:
-    """True when every figure in the report is a finite number (a sanity check for tests)."""
-    for run in report["runs"]:
-        for key in ("autonomy_pct", "mean_abs_cte_m", "max_abs_cte_m", "smoothness"):
-            if not math.isfinite(run[key]):
-                return False
-    return True

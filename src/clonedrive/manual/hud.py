@@ -7,11 +7,10 @@ written once, here, from the session's state, and tested without a display.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from clonedrive.manual.session import DrivingSession
+from pathlib import Path
+from typing import Any, Protocol
 
 HELP_DRIVING = ("W/S: throttle/brake  A/D: steer (or arrows)  M: mouse steering  Space: brake  "
                 "R: record  P: autonomous  Backspace: reset  Esc: menu")
@@ -25,6 +24,28 @@ class MenuItem:
     track: str  #: a name for load_track
 
 
+class SessionState(Protocol):
+    """What the text is made from: the state a :class:`~clonedrive.manual.session.DrivingSession`
+    keeps (named here, so that this module needs nothing from the session's)."""
+
+    observation: Any  #: the car's SimObservation, None with no track open
+    controls: Any  #: the controls applied last
+    message: str
+    reverse: bool
+    track_name: str
+    pilot: Any  #: the autonomous pilot (with a ``name``), None when a person drives
+    steering_source: str
+    taking_over: bool
+    takeover: bool
+    takeovers: int
+    recording: bool
+    rows_recorded: int
+    folder_rows: int
+    out_dir: Path
+    menu_items: Sequence[MenuItem]
+    menu_index: int
+
+
 @dataclass(frozen=True)
 class Hud:
     """The text the window shows while driving."""
@@ -36,7 +57,7 @@ class Hud:
     help: str
 
 
-def driving_hud(session: DrivingSession) -> Hud:
+def driving_hud(session: SessionState) -> Hud:
     """The driving HUD's text (meaningful while a track is open)."""
     obs = session.observation
     if obs is None:
@@ -52,7 +73,7 @@ def driving_hud(session: DrivingSession) -> Hud:
                message=session.message, help=HELP_DRIVING)
 
 
-def _mode_line(session: DrivingSession) -> str:
+def _mode_line(session: SessionState) -> str:
     if session.pilot is None:
         return f"MANUAL: {session.steering_source} steering"
     who = "manual override" if session.taking_over else "the pilot drives"
@@ -60,14 +81,14 @@ def _mode_line(session: DrivingSession) -> str:
     return f"AUTONOMOUS ({session.pilot.name}): {who}{takeovers}"
 
 
-def _recording_line(session: DrivingSession) -> str:
+def _recording_line(session: SessionState) -> str:
     if session.recording:
         return (f"REC  {session.rows_recorded} rows  ({session.folder_rows} in "
                 f"{session.out_dir.name}/)")
     return f"not recording: R records into {session.out_dir}"
 
 
-def menu_lines(session: DrivingSession) -> list[str]:
+def menu_lines(session: SessionState) -> list[str]:
     """The menu: a title, one line per track (the chosen one marked), the direction."""
     lines = ["clonedrive: choose a track", ""]
     for index, item in enumerate(session.menu_items):

@@ -22,7 +22,7 @@ from clonedrive.base.interrupts import raise_if_lost
 from clonedrive.model.history import HISTORY_NAME, write_history
 
 if TYPE_CHECKING:
-    from clonedrive.model.train import TrainConfig
+    from clonedrive.model.train_config import TrainConfig
 
 
 def run_recorder_class():

@@ -242,7 +242,8 @@ def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
 def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
     """Drive the trained model, with its own settings, through every group of runs."""
     from clonedrive.drivers.policy import load_policy
-    from clonedrive.evaluate.rollout import evaluate, format_table
+    from clonedrive.evaluate.results import format_table
+    from clonedrive.evaluate.rollout import evaluate
 
     model_path = out / "train" / "model.keras"
     policy = load_policy(model_path)

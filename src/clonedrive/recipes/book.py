@@ -155,7 +155,7 @@ class RecipeFile:
 
     def train_config(self, **overrides):
         """The TrainConfig of this recipe, with ``overrides`` (fields) on top."""
-        from clonedrive.model.train import TrainConfig
+        from clonedrive.model.train_config import TrainConfig
 
         defaults = self.data_table.get("defaults", {})
         base = {"correction": defaults["correction"]} if "correction" in defaults else {}

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.model.train import MAX_LEARNING_RATE
+from clonedrive.model.train_config import MAX_LEARNING_RATE
 from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.world.vehicle import check_set_speed
 

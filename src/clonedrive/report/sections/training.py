@@ -26,7 +26,7 @@ def build(ctx: ReportContext) -> list[Section]:
     split = (ctx.dataset or {}).get("split") or {}
     kind = split.get("kind") or (settings or {}).get("split")
     if settings is not None:
-        from clonedrive.model.train import TrainConfig
+        from clonedrive.model.train_config import TrainConfig
 
         val_fraction = settings.get("val_fraction", TrainConfig().val_fraction)
         rows = [

@@ -10,7 +10,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from clonedrive.sim.meshes import box, crossed_quads, vertex_normals
-from clonedrive.sim.scenery import terrain
 from clonedrive.sim.scenery.site import (
     CHEVRON_CURVATURE,
     ROAD_STEP_M,
@@ -19,7 +18,7 @@ from clonedrive.sim.scenery.site import (
     right_normal,
     track_rng,
 )
-from clonedrive.sim.scenery.terrain import ROCK_SLOPE_DEG
+from clonedrive.sim.scenery.terrain import ROCK_SLOPE_DEG, ground_height, height
 from clonedrive.sim.scenery.themes import TREE_ASPECT, TREE_ATLAS_KINDS, TREE_HEIGHT_M
 
 #: Mountain barriers line the drop side wherever the road bends more than this [1/m].
@@ -44,7 +43,7 @@ def build_trees(site: Site) -> None:
     # thin out far away (they are small there) and keep clumps: a patch field
     keep &= site.patches(spots * 1.7) > -0.3
     spots, edge = spots[keep], edge[keep]
-    z = terrain.height(site, spot_proj.s_m[keep], spot_proj.cte_m[keep], spots)
+    z = height(site, spot_proj.s_m[keep], spot_proj.cte_m[keep], spots)
     # not in water, not on cliffs (steepness from the terrain normal at the nearest vertex)
     _, nearest = cKDTree(positions[:, :2]).query(spots)
     flat_enough = normals[nearest, 2] > math.cos(math.radians(ROCK_SLOPE_DEG))
@@ -88,7 +87,7 @@ def build_boulders(site: Site) -> None:
     if site.bridge is not None:
         keep = ~site.bridge.contains(s, site.length)
         xy, s = xy[keep], s[keep]
-    z = terrain.ground_height(site, xy)
+    z = ground_height(site, xy)
     if site.water_level is not None:
         keep = z > site.water_level + 0.3
         xy, z = xy[keep], z[keep]

@@ -68,6 +68,14 @@ def test_demo_options_override_the_recipe():
     assert not any(g.video for g in groups)
 
 
+@pytest.mark.parametrize("recipe", ["writeup", "best"])
+def test_unseen_zero_leaves_out_the_unseen_tracks_group(recipe):
+    from clonedrive.pipelines.demo import DemoConfig, demo_plan
+
+    _, _, groups = demo_plan(DemoConfig(recipe=recipe, unseen=0))
+    assert groups and all(g.tracks and not g.unseen for g in groups)
+
+
 def test_a_run_folder_of_another_recipe_is_refused_not_reused(tmp_path, capsys):
     """The demo reuses finished stages; a folder holding another recipe's stages must not pass
     for this recipe's."""

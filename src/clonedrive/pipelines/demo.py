@@ -95,10 +95,10 @@ def demo_plan(config: DemoConfig, recipe: RecipeFile | None = None):
     for values in recipe.evaluation:
         group = EvalConfig(**values)
         unseen = group.unseen if config.unseen is None or not group.unseen else config.unseen
-        group = replace(group, video=group.video and config.video, unseen=unseen,
-                        workers=config.workers)
-        if group.tracks or group.unseen:
-            groups.append(group)
+        if not group.tracks and not unseen:  # --unseen 0 empties a group of unseen tracks
+            continue
+        groups.append(replace(group, video=group.video and config.video, unseen=unseen,
+                              workers=config.workers))
     return recipe.recordings, train, groups
 
 

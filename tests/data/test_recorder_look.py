@@ -17,8 +17,9 @@ def test_looks_are_checked() -> None:
     assert "udacity" in TRAINING_LOOKS and "dusk" not in TRAINING_LOOKS
     with pytest.raises(ValueError, match="look 'dusk' is not one of"):
         RecordConfig(look="dusk")
-    with pytest.raises(ValueError, match="choose one"):
-        RecordConfig(look="udacity", randomize=True)
+    # domain randomisation is one more look, chosen the same way
+    assert RecordConfig(look="randomized").randomized
+    assert RecordConfig(look="randomized").conditions() is None
     # each seed draws its own look, the same one every time
     assert RecordConfig(look="udacity", seed=3).conditions() == FAMILIES["udacity"].sample(3)
     assert RecordConfig(look="udacity", seed=3).conditions() != RecordConfig(
@@ -36,3 +37,21 @@ def test_a_recording_in_the_udacity_look(tmp_path) -> None:
     assert difference.mean() > 3.0  # another road shade, lines, light
     saved = json.loads((tmp_path / "look" / "config.json").read_text())
     assert json.dumps(saved).count('"udacity"') >= 1
+
+
+def test_randomize_is_the_randomized_look(tmp_path, capsys) -> None:
+    """One way to set the look: ``--randomize`` is ``--look randomized``, not a second switch."""
+    from clonedrive.cli import main
+
+    common = ["record", "--track", "lake", "--seconds", "0.2", "--no-scenery", "--seed", "5",
+              "--start-time", "2026-01-01T12:00:00"]
+    assert main([*common, "--randomize", "--out", str(tmp_path / "flag")]) == 0
+    assert main([*common, "--look", "randomized", "--out", str(tmp_path / "look")]) == 0
+    assert main([*common, "--out", str(tmp_path / "plain")]) == 0
+    first = {name: read_rgb(read_driving_log(tmp_path / name).rows[0].center)
+             for name in ("flag", "look", "plain")}
+    assert np.array_equal(first["flag"], first["look"])
+    assert not np.array_equal(first["look"], first["plain"])
+    with pytest.raises(SystemExit):
+        main([*common, "--randomize", "--look", "udacity", "--out", str(tmp_path / "both")])
+    assert "not allowed with argument" in capsys.readouterr().err

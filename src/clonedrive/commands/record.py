@@ -71,12 +71,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ISO time of the first image name (default: now, local time)")
     parser.add_argument("--no-scenery", action="store_true",
                         help="road and terrain only (no trees, rocks...)")
-    parser.add_argument("--randomize", action="store_true",
-                        help="domain randomisation of light, fog, colours")
-    parser.add_argument("--look", default=None, metavar="FAMILY",
-                        help="record in a look drawn (from --seed) from a condition family: "
-                             "udacity (towards the Udacity simulator's frames: road shade, line "
-                             "colour and wear, light, shadows, JPEG), or clear")
+    looks = parser.add_mutually_exclusive_group()
+    looks.add_argument("--look", default=None, metavar="LOOK",
+                       help="record in a look drawn from --seed: udacity (towards the Udacity "
+                            "simulator's frames: road shade, line colour and wear, light, "
+                            "shadows, JPEG), randomized (domain randomisation of light, fog, "
+                            "colours, camera height, noise), or clear (default: the theme's)")
+    looks.add_argument("--randomize", action="store_true",
+                       help="the same as --look randomized")
     add_render_arguments(parser, crop=False)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
@@ -99,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
             offset_fraction=args.offset_fraction, max_off_road_events=args.max_off_road,
             header=args.header,
             relative_paths=args.relative_paths, jpeg_quality=args.jpeg_quality,
-            start_time=args.start_time, scenery=not args.no_scenery, randomize=args.randomize,
-            look=args.look, renderer=args.renderer,
+            start_time=args.start_time, scenery=not args.no_scenery,
+            look="randomized" if args.randomize else args.look, renderer=args.renderer,
         )
         summary = record(config, args.out, progress=not args.json and sys.stderr.isatty())
     except (ValueError, TrackError) as error:

@@ -90,8 +90,8 @@ class RecordConfig:
     jpeg_quality: int = JPEG_QUALITY  #: JPEG quality 1-100
     max_off_road_events: int = 3  #: stop early once the expert has left the road this often
     scenery: bool = True  #: trees, rocks... (False: road and terrain only)
-    randomize: bool = False  #: domain randomisation of the scene's look
-    #: a condition family (sim/conditions.py, e.g. "udacity") whose look is drawn from ``seed``
+    #: the look (sim/conditions.py RECORDING_LOOKS): a condition family such as "udacity"
+    #: drawn from ``seed``, or "randomized" (domain randomisation); None: the theme's own
     look: str | None = None
     start_time: str | None = None  #: ISO time of the first image name; None = now (local time)
     fsync_every_rows: int = 15  #: fsync the CSV this often (and at the end); 1 = every row
@@ -128,16 +128,20 @@ class RecordConfig:
 
     def conditions(self):
         """The :class:`~clonedrive.sim.conditions.Conditions` of ``look`` drawn from ``seed``,
-        or None (the theme's look, or ``randomize``)."""
-        if self.look is None:
-            return None
-        from clonedrive.sim.conditions import FAMILIES, TRAINING_LOOKS
+        or None (the theme's own look, or domain randomisation: :meth:`randomized`)."""
+        from clonedrive.sim.conditions import FAMILIES, check_recording_look
 
-        if self.look not in TRAINING_LOOKS:
-            raise ValueError(f"look {self.look!r} is not one of {', '.join(TRAINING_LOOKS)}")
-        if self.randomize:
-            raise ValueError("look and randomize are two ways of varying the look: choose one")
+        check_recording_look(self.look)
+        if self.look is None or self.randomized:
+            return None
         return FAMILIES[self.look].sample(self.seed)
+
+    @property
+    def randomized(self) -> bool:
+        """Whether the look is domain randomisation (``look = "randomized"``)."""
+        from clonedrive.sim.conditions import RANDOMIZED_LOOK
+
+        return self.look == RANDOMIZED_LOOK
 
     def expert_config(self) -> ExpertConfig:
         options = {}
@@ -203,7 +207,7 @@ def _record(config: RecordConfig, out_dir: Path, *, progress: bool) -> RecordSum
 
     rng = np.random.default_rng(config.seed)
     expert = ExpertPolicy(track, config.expert_config(), rng)
-    sim_config = SimConfig(scenery=config.scenery, randomize=config.randomize,
+    sim_config = SimConfig(scenery=config.scenery, randomize=config.randomized,
                            conditions=config.conditions(), renderer=config.renderer)
     steering: list[float] = []
     skipped = 0

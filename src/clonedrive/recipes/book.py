@@ -275,15 +275,13 @@ def _record_spec(entry: dict, source: str, where: str) -> RecordSpec:
         raise ValueError(f"{source}: {where}: laps = {laps!r}; expected a whole number 1-100")
     if not isinstance(values.get("reverse", False), bool):
         raise ValueError(f"{source}: {where}: reverse must be true or false")
-    _check_look(values.get("look"), f"{source}: {where}")
+    from clonedrive.sim.conditions import check_recording_look
+
+    try:
+        check_recording_look(values.get("look"))
+    except ValueError as error:
+        raise ValueError(f"{source}: {where}: {error}") from None
     return RecordSpec(**values)
-
-
-def _check_look(look: object, where: str) -> None:
-    from clonedrive.sim.conditions import TRAINING_LOOKS
-
-    if look is not None and look not in TRAINING_LOOKS:
-        raise ValueError(f"{where}: look = {look!r}; expected one of {', '.join(TRAINING_LOOKS)}")
 
 
 def _evaluation(data: dict, source: str) -> tuple[dict, ...]:

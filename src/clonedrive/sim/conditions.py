@@ -289,6 +289,18 @@ FAMILIES: dict[str, ConditionFamily] = {family.name: family for family in (
 )}
 #: The families a recording may be made in (``record --look NAME``): those not held out.
 TRAINING_LOOKS = tuple(name for name, family in FAMILIES.items() if not family.held_out)
+#: The look of domain randomisation (sim/randomization.py): light, fog, tint, camera height and
+#: noise drawn afresh from each recording's seed, within ranges no held-out family enters.
+RANDOMIZED_LOOK = "randomized"
+#: Every look training data may be recorded in: one way to choose it, ``look = NAME``.
+RECORDING_LOOKS = (*TRAINING_LOOKS, RANDOMIZED_LOOK)
+
+
+def check_recording_look(look: str | None) -> None:
+    """ValueError unless ``look`` is None (the theme's own) or one of :data:`RECORDING_LOOKS`."""
+    if look is not None and look not in RECORDING_LOOKS:
+        raise ValueError(f"look {look!r} is not one of {', '.join(RECORDING_LOOKS)} (the looks "
+                         "training data may be recorded in; the others are held out)")
 
 
 def fog_alpha(height: int, *, vertical_fov_deg: float, pitch_down_deg: float,

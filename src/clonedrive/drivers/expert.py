@@ -45,6 +45,7 @@ from clonedrive.world.vehicle import (
     AIR_DENSITY_KGPM3,
     GRAVITY_MPS2,
     MPH_TO_MPS,
+    TOP_SPEED_MPH,
     Controls,
     VehicleParams,
 )
@@ -61,7 +62,7 @@ class ExpertConfig:
     """How the expert drives."""
 
     style: str = "center"  #: one of :data:`STYLES`
-    speed_mph: float = 30.0  #: set speed [mph]: a maximum; curves ahead lower it
+    speed_mph: float = TOP_SPEED_MPH  #: set speed [mph]: a maximum; curves ahead lower it
     reverse: bool = False  #: drive the track backwards (the simulator must be reset likewise)
     offset_fraction: float = 0.6  #: left/right: fraction of the usable half-width off centre
     car_half_width_m: float = 0.9  #: half the car's body width [m] (a sedan is ~1.8 m wide)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.model.train_config import MAX_LEARNING_RATE
 from clonedrive.sim.engine import DEFAULT_RENDERER
-from clonedrive.world.vehicle import check_set_speed
+from clonedrive.world.vehicle import TOP_SPEED_MPH, check_set_speed
 
 DAGGER_JSON = "dagger.json"
 DAGGER_PNG = "dagger.png"
@@ -29,7 +29,7 @@ class DaggerConfig:
     beta_decay: float = 0.5  #: beta_k = beta * beta_decay ** (k - 1)
     tracks: tuple[str, ...] = ("mountain", "lake")  #: where labels are collected
     laps: int = 1  #: laps per track and iteration
-    speed_mph: float = 30.0  #: set speed (a cap) while collecting and evaluating
+    speed_mph: float = TOP_SPEED_MPH  #: set speed (a cap) while collecting and evaluating
     epochs: int = 2  #: training epochs per iteration, from the previous weights
     learning_rate: float = 5e-4
     eval_tracks: tuple[str, ...] = ("mountain", "lake")

@@ -43,6 +43,7 @@ from clonedrive.evaluate.results import totals
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
+    from clonedrive.drivers.policy import NetworkPolicy
     from clonedrive.sim.camera_pool import CameraPool
     from clonedrive.world.track import Track
 
@@ -94,32 +95,30 @@ def hud_frame(image: np.ndarray, *, steering: float, speed_mph: float, cte_m: fl
     return frame
 
 
-def _with_curve_rule(policy, parts: list[EvalConfig]):
+def _with_curve_rule(policy: NetworkPolicy, parts: list[EvalConfig]) -> NetworkPolicy:
     """``policy``, or a fork of it driving with the parts' ``slow_in_curves`` where that is
     given and differs from the policy's own."""
     if len({part.slow_in_curves for part in parts}) > 1:
         raise ValueError("the parts of one evaluation must agree on slow_in_curves")
     slow_in_curves = parts[0].slow_in_curves
-    if slow_in_curves is None or not hasattr(policy, "slow_in_curves") \
-            or policy.slow_in_curves == slow_in_curves:
+    if slow_in_curves is None or policy.slow_in_curves == slow_in_curves:
         return policy
     car = policy.fork()
     car.slow_in_curves = bool(slow_in_curves)
     return car
 
 
-def _report_header(policy, first: EvalConfig, model_path: str | None) -> dict:
+def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | None) -> dict:
     """eval.json before any run: the model, how it is driven and rendered, no runs yet."""
-    speed_head = bool(getattr(policy, "speed_head", False))
-    slow_in_curves = bool(getattr(policy, "slow_in_curves", False))
+    speed_head, slow_in_curves = policy.speed_head, policy.slow_in_curves
     return {
         "model": model_path,
-        "recipe": dict(getattr(policy, "notes", {}).get("recipe") or {}) or None,
+        "recipe": dict(policy.notes.get("recipe") or {}) or None,
         "slow_in_curves": slow_in_curves,
         "speed_head": speed_head,
-        "steering_filter_s": float(getattr(policy, "steering_filter_s", 0.0)),
-        "steering_hold": float(getattr(policy, "steering_hold", 0.0)),
-        "mirror_average": bool(getattr(policy, "mirror_average", False)),
+        "steering_filter_s": policy.steering_filter_s,
+        "steering_hold": policy.steering_hold,
+        "mirror_average": policy.mirror_average,
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (", target speed learned (speed head), capped by the set speed"
                             if speed_head else "")
@@ -147,8 +146,8 @@ def _groups(parts: list[EvalConfig], part_specs: list[list[RunSpec]], workers: i
     return groups
 
 
-def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | Path, *,
-             progress: bool = True, model_path: str | None = None,
+def evaluate(policy: NetworkPolicy, config: EvalConfig | Sequence[EvalConfig],
+             out_dir: str | Path, *, progress: bool = True, model_path: str | None = None,
              model_options: dict | None = None,
              tracks: Mapping[str, Track] | None = None) -> dict:
     """Drive every run of ``config`` with ``policy`` (a NetworkPolicy) and write the results.
@@ -245,8 +244,8 @@ def evaluate(policy, config: EvalConfig | Sequence[EvalConfig], out_dir: str | P
     return report
 
 
-def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list[str],
-                      out: Path, tracks: Mapping[str, Track], workers: int, *,
+def _drive_in_workers(policy: NetworkPolicy, parts: list[EvalConfig], groups: list,
+                      names: list[str], out: Path, tracks: Mapping[str, Track], workers: int, *,
                       cost: list[float], model_path: str, model_options: dict | None,
                       on_results, on_group) -> None:
     """Drive each group in a worker process, longest first (so that the last group to start
@@ -258,15 +257,14 @@ def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list
     # Each worker builds a policy that drives as ``policy`` does: from the model's checked
     # traces where it runs traced (no Keras to import: ~3 s less per worker), else from the
     # model file (also for saliency videos: they need the Keras model).
-    policy_options = policy.options() if hasattr(policy, "options") else {}
     portable = None
-    if hasattr(policy, "portable") and not any(part.video_saliency for part in parts):
+    if not any(part.video_saliency for part in parts):
         portable = policy.portable(max(len(group) for _, group in groups))
-    tasks = [{"model_path": str(model_path), "model_options": dict(model_options or {}),
-              "policy_options": policy_options, "portable": portable,
-              "group": groups[i][1], "names": names, "config": groups[i][0],
-              "tracks": {spec.track: tracks[spec.track] for _, spec in groups[i][1]},
-              "out": str(out)} for i in order]
+    tasks = [GroupTask(model_path=str(model_path), model_options=dict(model_options or {}),
+                       policy_options=policy.options(), portable=portable,
+                       group=tuple(groups[i][1]), names=tuple(names), config=groups[i][0],
+                       tracks={spec.track: tracks[spec.track] for _, spec in groups[i][1]},
+                       out=str(out)) for i in order]
 
     def on_done(task: int, results: list[tuple[int, dict]]) -> None:
         for index, result in results:
@@ -276,19 +274,33 @@ def _drive_in_workers(policy, parts: list[EvalConfig], groups: list, names: list
     run_tasks(_drive_group_task, tasks, workers=workers, on_done=on_done)
 
 
-def _drive_group_task(task: dict) -> list[tuple[int, dict]]:
+@dataclass(frozen=True)
+class GroupTask:
+    """What a worker process needs to drive one group of an evaluation."""
+
+    model_path: str
+    model_options: dict  #: load_policy's trust and runtime
+    policy_options: dict  #: how the policy drives (NetworkPolicy.options)
+    portable: object  #: the model's checked traces (NetworkPolicy.portable), or None
+    group: tuple  #: (index, RunSpec) of each run
+    names: tuple[str, ...]  #: every run's file-name stem
+    config: EvalConfig
+    tracks: dict  #: track name -> Track, as the caller resolved them
+    out: str
+
+
+def _drive_group_task(task: GroupTask) -> list[tuple[int, dict]]:
     """A worker's share of an evaluation: load the model, drive the group, return results."""
     from clonedrive.drivers.policy import load_policy
 
-    config: EvalConfig = task["config"]
-    options = dict(task.get("policy_options", {}))
-    if config.slow_in_curves is not None:
-        options["slow_in_curves"] = config.slow_in_curves
-    policy = load_policy(task["model_path"], **task["model_options"],
-                         portable=task.get("portable"), **options)
+    options = dict(task.policy_options)
+    if task.config.slow_in_curves is not None:
+        options["slow_in_curves"] = task.config.slow_in_curves
+    policy = load_policy(task.model_path, **task.model_options, portable=task.portable,
+                         **options)
     results: list[tuple[int, dict]] = []
-    _drive_group(policy, task["group"], task["names"], config, Path(task["out"]), None,
-                 lambda index, result: results.append((index, result)), task["tracks"])
+    _drive_group(policy, list(task.group), list(task.names), task.config, Path(task.out), None,
+                 lambda index, result: results.append((index, result)), task.tracks)
     return results
 
 
@@ -323,12 +335,12 @@ def _expected_steps(spec: RunSpec, config: EvalConfig, track: Track) -> int:
     return int(seconds * 15)
 
 
-def _rendering(policy, config: EvalConfig) -> dict:
+def _rendering(policy: NetworkPolicy, config: EvalConfig) -> dict:
     """What eval.json records about how frames were drawn: the renderer (sim/engine.py) and the
     rows rendered for runs without video (None: whole frames)."""
     from clonedrive.sim.engine import renderer_info
 
-    rows = None if config.full_frame else getattr(policy, "visible_rows", None)
+    rows = None if config.full_frame else policy.visible_rows
     return {**renderer_info(config.renderer), "render_rows": None if rows is None else
             list(rows)}
 
@@ -357,7 +369,7 @@ def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Pat
     return run
 
 
-def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
+def _drive_group(policy: NetworkPolicy, group: list[tuple[int, RunSpec]], names: list[str],
                  config: EvalConfig, out: Path, bar, publish, tracks: Mapping[str, Track], *,
                  overlap: bool = False) -> None:
     """Drive ``group``'s runs in lock-step; ``overlap``: the network decides for half the
@@ -368,7 +380,7 @@ def _drive_group(policy, group: list[tuple[int, RunSpec]], names: list[str],
 
     runs: list[_Run] = []
     pool = CameraPool()
-    rows = None if config.full_frame else getattr(policy, "visible_rows", None)
+    rows = None if config.full_frame else policy.visible_rows
     try:
         for index, spec in group:
             runs.append(_open_run(index, spec, names[index], config, out, pool, rows,

@@ -67,3 +67,17 @@ def test_interruptible_restores_the_handler_and_hook() -> None:
         assert sys.unraisablehook is not hook
     assert signal.getsignal(signal.SIGTERM) is handler
     assert sys.unraisablehook is hook
+
+
+def test_a_sigterm_in_a_deferred_block_is_raised_when_it_ends() -> None:
+    from clonedrive.base.interrupts import deferred_termination
+
+    finished = False
+    with interruptible():
+        with pytest.raises(Terminated):
+            with deferred_termination():
+                signal.raise_signal(signal.SIGTERM)  # waits ...
+                finished = True  # ... so this still runs
+        assert finished
+        with deferred_termination():
+            pass  # nothing pending: nothing raised

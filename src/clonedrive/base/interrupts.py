@@ -13,6 +13,10 @@ on. Two guards keep it:
   later, from another thread, once it is out of the destructor;
 - long loops call :func:`raise_if_lost` at safe points (training does after every batch):
   a SIGTERM requested and still not ended is raised there.
+
+Work that must not be cut in half (starting a worker process: a child whose start-up data
+stops halfway prints a traceback of its own) runs inside :func:`deferred_termination`: a
+SIGTERM arriving there is raised when the block ends.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from contextlib import contextmanager
 
 REDELIVER_AFTER_S = 0.05  # how soon a swallowed interruption is raised again
 
-_state = {"terminate_requested": False}
+_state = {"terminate_requested": False, "deferring": 0, "deferred": False}
 
 
 class Terminated(KeyboardInterrupt):
@@ -34,7 +38,24 @@ class Terminated(KeyboardInterrupt):
 
 def _raise_terminated(signum: int, frame: object) -> None:
     _state["terminate_requested"] = True
+    if _state["deferring"]:
+        _state["deferred"] = True
+        return
     raise Terminated
+
+
+@contextmanager
+def deferred_termination():
+    """Within: a SIGTERM waits; it is raised as :class:`Terminated` when the block ends
+    (outside :func:`interruptible` nothing changes: SIGTERM keeps its own handler)."""
+    _state["deferring"] += 1
+    try:
+        yield
+    finally:
+        _state["deferring"] -= 1
+    if not _state["deferring"] and _state["deferred"]:
+        _state["deferred"] = False
+        raise Terminated
 
 
 def _redelivering_hook(previous_hook):
@@ -71,7 +92,7 @@ def interruptible():
     finally:
         sys.unraisablehook = previous_hook
         signal.signal(signal.SIGTERM, previous_handler)
-        _state["terminate_requested"] = False
+        _state.update(terminate_requested=False, deferred=False)
 
 
 def raise_if_lost() -> None:

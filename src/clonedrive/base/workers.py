@@ -5,7 +5,8 @@ a batch of benchmark episodes driven in lock-step (:func:`clonedrive.bench.drivi
 a group of evaluation runs (:mod:`clonedrive.evaluate.rollout`), one recording of the demo.
 :func:`run_tasks` runs a list of tasks on ``workers`` local processes, or as Ray tasks
 (``ray="auto"`` or a cluster address; ``"local"`` starts a local Ray instance), and returns
-their results in task order. It sits in the bottom layer and imports nothing of clonedrive.
+their results in task order. It sits in the bottom layer and imports only
+:mod:`clonedrive.base.interrupts`.
 
 Why results are identical with 1 worker, N workers and Ray: the batches are cut from the
 episode list before anything runs (never by which worker is free), every batch runs in a
@@ -21,6 +22,8 @@ import os
 import signal
 from collections.abc import Callable, Sequence
 from typing import Any
+
+from clonedrive.base.interrupts import deferred_termination
 
 #: Environment set in every worker before NumPy/PyTorch load: one compute thread each.
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
@@ -86,12 +89,21 @@ def run_tasks(function: Callable[[Any], Any], tasks: Sequence[Any], *,
         raise ValueError(f"workers must be at least 1, got {workers}")
     context = multiprocessing.get_context("spawn")  # no forked Panda3D or PyTorch state
     results = []
-    with context.Pool(processes=min(workers, len(tasks)), initializer=_init_worker,
-                      initargs=(os.getpid(),), maxtasksperchild=1) as pool:
+    pool = None
+    try:
+        # A SIGTERM while the pool starts its workers waits until they are started: a worker
+        # whose start-up data were cut off would print a traceback after the command ended.
+        with deferred_termination():
+            pool = context.Pool(processes=min(workers, len(tasks)), initializer=_init_worker,
+                                initargs=(os.getpid(),), maxtasksperchild=1)
         for index, result in enumerate(pool.imap(function, tasks)):
             results.append(result)
             if on_done is not None:
                 on_done(index, result)
+    finally:
+        if pool is not None:
+            pool.terminate()  # as the pool's context manager does: every worker stops
+            pool.join()
     return results
 
 

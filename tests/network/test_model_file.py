@@ -146,7 +146,8 @@ def test_nan_predictions_are_counted() -> None:
 
 
 def test_evaluate_counts_nan_predictions_per_run_in_eval_json(tmp_path: Path) -> None:
-    from clonedrive.evaluate.rollout import EvalConfig, evaluate, format_table
+    from clonedrive.evaluate.results import format_table
+    from clonedrive.evaluate.rollout import EvalConfig, evaluate
 
     inputs = keras.Input(shape=(160, 320, 3))
     outputs = layers.Dense(1, name="steering")(layers.GlobalAveragePooling2D()(inputs))

@@ -38,7 +38,7 @@ def main() -> int:
         config = BenchConfig(models=(str(model),), splits=("train-tracks", "new-tracks-hard"),
                              batch=2, max_seconds=args.seconds)
         tasks, _ = plan_tasks(load_suite(DEFAULT_SUITE), config)
-        tasks = [t for t in tasks if t["kind"] == "model"][: max(1, args.episodes // 2)]
+        tasks = [t for t in tasks if t.kind == "model"][: max(1, args.episodes // 2)]
         episodes = sum(len(t["episodes"]) for t in tasks)
         figures, results = {}, {}
         for workers in (1, args.workers):

@@ -17,7 +17,7 @@ import time
 
 def main() -> int:
     from clonedrive.base.workers import default_workers, run_tasks
-    from clonedrive.bench.driving import drive_batch
+    from clonedrive.bench.driving import BatchTask, drive_batch
     from clonedrive.bench.suite import load_suite
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -26,7 +26,7 @@ def main() -> int:
     args = parser.parse_args()
     suite = load_suite(args.suite)
     episodes = suite.episodes()
-    tasks = [{"kind": "expert", "latency": True, "episodes": episodes[i:i + 8]}
+    tasks = [BatchTask(kind="expert", latency=True, episodes=tuple(episodes[i:i + 8]))
              for i in range(0, len(episodes), 8)]
     started = time.perf_counter()
     results = [run for batch in run_tasks(drive_batch, tasks, workers=args.workers)

@@ -3,6 +3,7 @@ workers and Ray; bench.json and the leaderboard written."""
 
 import json
 import shutil
+from dataclasses import replace
 
 import pytest
 
@@ -139,15 +140,15 @@ def test_every_model_task_carries_the_policy_options_and_the_workers_drive_with_
                          max_seconds=4.0, scenery=False, steering_hold=0.3,
                          steering_filter_s=0.1, slow_in_curves=True, mirror_average=True)
     tasks, _ = plan_tasks(load_suite(config.suite), config)
-    models = [task for task in tasks if task["kind"] == "model"]
+    models = [task for task in tasks if task.kind == "model"]
     policy = load_policy(tiny_models[0], **config.policy_options())
     assert policy.mirror_average and policy.steering_hold == 0.3
     for task in models:  # named as NetworkPolicy names them, so it drives the same way
-        options = task["policy_options"]
+        options = task.policy_options
         assert set(options) <= set(policy.options())
         assert all(policy.options()[key] == value for key, value in options.items())
     held = drive_batch(models[0])
-    loose = drive_batch({**models[0], "policy_options": {}})
+    loose = drive_batch(replace(models[0], policy_options={}))
     assert [r["smoothness"] for r in held] != [r["smoothness"] for r in loose]
     assert all(h["smoothness"] < lo["smoothness"] for h, lo in zip(held, loose, strict=True))
 
@@ -179,20 +180,19 @@ def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same
     config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=2,
                          max_seconds=3.0, scenery=False, mirror_average=True)
     tasks, _ = plan_tasks(load_suite(config.suite), config)
-    models = [task for task in tasks if task["kind"] == "model"]
     bench_run._add_portable_models(tasks, config, workers=1)  # 1 batch: below the threshold
-    assert all("portable" not in task for task in models)
+    assert all(task.portable is None for task in tasks)
     monkeypatch.setattr(bench_run, "PORTABLE_FROM_BATCHES_PER_WORKER", 1)
     bench_run._add_portable_models(tasks, config, workers=1)
-    (task,) = models
-    assert sorted(task["portable"].traces) == [2, 4]  # 1 and 2 cars, mirrored
+    (task,) = [task for task in tasks if task.kind == "model"]
+    assert sorted(task.portable.traces) == [2, 4]  # 1 and 2 cars, mirrored
     import torch
 
     before = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
         traced = drive_batch(task)
-        from_file = drive_batch({**task, "portable": None})
+        from_file = drive_batch(replace(task, portable=None))
         assert torch.get_num_threads() == 2  # a batch drives on one thread, then gives it back
     finally:
         torch.set_num_threads(before)

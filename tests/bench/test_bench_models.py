@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from support.student_models import student_model, write_keras2_h5
 
-from clonedrive.bench.driving import drive_batch
+from clonedrive.bench.driving import BatchTask, drive_batch
 from clonedrive.bench.run import BenchConfig, offline_mse, offline_rows
 from clonedrive.bench.suite import EpisodeSpec
 from clonedrive.sim.conditions import Conditions
@@ -29,8 +29,8 @@ def test_a_students_model_is_benched_only_with_trust(tmp_path: Path) -> None:
     assert 0.0 < trusted == pytest.approx(offline_mse(str(safe), rows), rel=1e-5)
     spec = EpisodeSpec(split="a", index=0, track="lake", speed_mph=10.0, family="clear", seed=0,
                        conditions=Conditions(), laps=1)
-    task = {"kind": "model", "model": path, "policy_options": {}, "scenery": False,
-            "max_seconds": 1.0, "trust_model": True, "episodes": [spec]}
+    task = BatchTask(kind="model", model=path, scenery=False, max_seconds=1.0,
+                     trust_model=True, episodes=(spec,))
     [result] = drive_batch(task)
     assert result["distance_m"] > 0.0
     with pytest.raises(ValueError, match="runtime 'tpu'"):

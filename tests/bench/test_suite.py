@@ -107,12 +107,12 @@ def test_a_split_without_directions_or_starts_drives_as_before():
 def test_the_expert_drives_a_whole_lap_from_any_start_in_either_direction(tmp_path):
     """A lap is a whole track's length from wherever the car starts; the expert's reference
     laps (physics only) are clean in both directions and from a later start."""
-    from clonedrive.bench.driving import drive_batch
+    from clonedrive.bench.driving import BatchTask, drive_batch
 
     text = BASE.replace('conditions = ["clear"]', 'conditions = ["clear"]\n'
                         'directions = ["forward", "reverse"]\nstarts = [0.0, 0.5]')
     specs = load_suite(write(tmp_path, text)).episodes()
-    results = drive_batch({"kind": "expert", "episodes": specs})
+    results = drive_batch(BatchTask(kind="expert", episodes=tuple(specs)))
     assert [(r["reverse"], r["start_fraction"]) for r in results] == [
         (False, 0.0), (False, 0.5), (True, 0.0), (True, 0.5)]
     assert all(r["clean"] and r["lap_time_s"] for r in results)

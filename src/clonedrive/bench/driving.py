@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 from clonedrive.bench.suite import EpisodeSpec
 from clonedrive.episode.rules import EpisodeRules
@@ -21,6 +22,27 @@ from clonedrive.episode.runner import Decision, Episode, PerCar, Runner, Step
 from clonedrive.sim.camera_pool import CameraPool
 from clonedrive.sim.engine import DEFAULT_RENDERER
 from clonedrive.sim.simulator import Controls, SimConfig, SimObservation, Simulator
+
+
+@dataclass(frozen=True)
+class BatchTask:
+    """One batch for a worker: a model's episodes, or the expert's reference laps."""
+
+    kind: str  #: "model" or "expert"
+    episodes: tuple[EpisodeSpec, ...]
+    max_seconds: float | None = None  #: cap per episode (quick runs)
+    scenery: bool = True
+    renderer: str = DEFAULT_RENDERER
+    full_frame: bool = False  #: render whole frames, not only the model's crop
+    latency: bool = False  #: expert: obey as late as each episode's conditions say
+    model: str = ""  #: model: the file
+    label: str = ""  #: model: its method's name
+    entry: str = ""  #: model: as given on the command line (LABEL=PATH or PATH)
+    policy_options: dict = field(default_factory=dict)  #: NetworkPolicy's options
+    trust_model: bool = False
+    runtime: str = "auto"
+    portable: object = None  #: the model's checked traces (NetworkPolicy.portable), or None
+
 
 #: What a delayed car applies before its first decision arrives: coast straight.
 _NEUTRAL = Decision(controls=Controls(steering=0.0, throttle=0.0))
@@ -80,25 +102,18 @@ def _drive(episodes: list[Episode], driver, specs: Sequence[EpisodeSpec]) -> lis
             for car, (spec, episode) in enumerate(zip(specs, episodes, strict=True))]
 
 
-def drive_batch(task: dict) -> list[dict]:
-    """Drive one batch: ``{"kind": "model", "model": path, "policy_options": {...},
-    "scenery": bool, "episodes": [EpisodeSpec...], "portable": traces or None}`` (the options
-    are NetworkPolicy's, as :meth:`BenchConfig.policy_options` gives them) or ``{"kind":
-    "expert", "episodes": [...], "latency": bool}`` (``latency``: the episodes' actuation
-    latency too; the references are driven without). Returns one result dict per episode, in
-    order."""
-    specs: list[EpisodeSpec] = list(task["episodes"])
-    rules = {"max_seconds": task.get("max_seconds")}
-    if task["kind"] == "expert":
-        return _drive_expert(specs, rules, latency=bool(task.get("latency", False)))
-    return _drive_model(task["model"], specs, rules,
-                        policy_options=dict(task.get("policy_options", {})),
-                        trust=bool(task.get("trust_model", False)),
-                        runtime=str(task.get("runtime", "auto")),
-                        scenery=bool(task.get("scenery", True)),
-                        portable=task.get("portable"),
-                        renderer=str(task.get("renderer", DEFAULT_RENDERER)),
-                        full_frame=bool(task.get("full_frame", False)))
+def drive_batch(task: BatchTask) -> list[dict]:
+    """Drive one batch (a model's episodes, or the expert's laps: with ``latency`` as late as
+    the episodes say, the references are driven without). Returns one result dict per
+    episode, in order."""
+    specs = list(task.episodes)
+    rules = {"max_seconds": task.max_seconds}
+    if task.kind == "expert":
+        return _drive_expert(specs, rules, latency=task.latency)
+    return _drive_model(task.model, specs, rules, policy_options=dict(task.policy_options),
+                        trust=task.trust_model, runtime=task.runtime, scenery=task.scenery,
+                        portable=task.portable, renderer=task.renderer,
+                        full_frame=task.full_frame)
 
 
 def _episodes(sims: list[Simulator], specs: list[EpisodeSpec], rules: dict) -> list[Episode]:

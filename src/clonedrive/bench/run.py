@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from clonedrive.base.config import config_to_dict, write_json_atomic
 from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
@@ -33,6 +34,9 @@ from clonedrive.bench.scores import (
 )
 from clonedrive.bench.suite import EpisodeSpec, Suite, load_suite, reference_name
 from clonedrive.sim.engine import DEFAULT_RENDERER, check_renderer
+
+if TYPE_CHECKING:
+    from clonedrive.bench.driving import BatchTask
 
 #: bench.json's format version.
 BENCH_FORMAT = 1
@@ -119,12 +123,13 @@ def _label_and_path(entry: str) -> tuple[str, str]:
     return label, path
 
 
-def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[EpisodeSpec]]:
+def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[BatchTask], list[EpisodeSpec]]:
     """The pool's tasks: expert reference batches first, then each model's batches; and the
     reference episodes (one per track, speed cap, direction and start, driven under the clear
     look)."""
     from dataclasses import replace
 
+    from clonedrive.bench.driving import BatchTask
     from clonedrive.sim.conditions import Conditions
 
     episodes = suite.episodes(config.splits or None)
@@ -140,15 +145,15 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[dict], list[Epis
     refs = list(references.values())
     common = {"max_seconds": config.max_seconds, "scenery": config.scenery,
               "renderer": config.renderer, "full_frame": config.full_frame}
-    tasks = [{"kind": "expert", "episodes": refs[i:i + 16], **common}
+    tasks = [BatchTask(kind="expert", episodes=tuple(refs[i:i + 16]), **common)
              for i in range(0, len(refs), 16)]
     for model in config.models:
         label, path = _label_and_path(model)
         for i in range(0, len(episodes), config.batch):
-            tasks.append({"kind": "model", "model": path, "label": label, "entry": model,
-                          "policy_options": config.policy_options(),
-                          "trust_model": config.trust_model, "runtime": config.runtime,
-                          "episodes": episodes[i:i + config.batch], **common})
+            tasks.append(BatchTask(kind="model", model=path, label=label, entry=model,
+                                   policy_options=config.policy_options(),
+                                   trust_model=config.trust_model, runtime=config.runtime,
+                                   episodes=tuple(episodes[i:i + config.batch]), **common))
     return tasks, refs
 
 
@@ -182,7 +187,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
     }
     write_json_atomic(out / "bench.json", report)  # a previous run's results are not this one's
     results: dict[int, list[dict]] = {}
-    episodes = sum(len(task["episodes"]) for task in tasks)
+    episodes = sum(len(task.episodes) for task in tasks)
     bar = progress_bar(total=episodes, unit="episode", desc="bench", enabled=progress)
 
     def on_done(index: int, result: list[dict]) -> None:
@@ -210,20 +215,20 @@ def _reference_of(run: dict) -> str:
                           float(run.get("start_fraction", 0.0)))
 
 
-def assemble(tasks: list[dict], results: dict[int, list[dict]], config: BenchConfig,
+def assemble(tasks: list[BatchTask], results: dict[int, list[dict]], config: BenchConfig,
              suite: Suite) -> dict:
     """bench.json's reference, runs, models and methods from the finished tasks."""
     split_names = [s for s in suite.split_names() if not config.splits or s in config.splits]
     reference = {}
     for index, task in enumerate(tasks):
-        if task["kind"] == "expert" and index in results:
+        if task.kind == "expert" and index in results:
             for run in results[index]:
                 reference[_reference_of(run)] = run
     models: dict[str, dict] = {}
     for index, task in enumerate(tasks):
-        if task["kind"] != "model":
+        if task.kind != "model":
             continue
-        model = models.setdefault(task["entry"], {"label": task["label"], "path": task["model"],
+        model = models.setdefault(task.entry, {"label": task.label, "path": task.model,
                                                   "runs": []})
         for run in results.get(index, []):
             ref = reference.get(_reference_of(run))
@@ -284,16 +289,18 @@ def offline_rows(folders: tuple[str, ...]) -> list:
 PORTABLE_FROM_BATCHES_PER_WORKER = 3
 
 
-def _add_portable_models(tasks: list[dict], config: BenchConfig, workers: int) -> None:
-    """Give each model's batches the model's checked traces (``task["portable"]``, see
+def _add_portable_models(tasks: list[BatchTask], config: BenchConfig, workers: int) -> None:
+    """Give each model's batches the model's checked traces (``task.portable``, see
     :meth:`NetworkPolicy.portable`), for the models with enough batches to gain from it; the
     others' workers load the model file, as do the batches of a model that does not trace."""
+    from dataclasses import replace
+
     from clonedrive.drivers.policy import load_policy
 
     counts: dict[str, int] = {}
     for task in tasks:
-        if task["kind"] == "model":
-            counts[task["model"]] = counts.get(task["model"], 0) + 1
+        if task.kind == "model":
+            counts[task.model] = counts.get(task.model, 0) + 1
     for path, count in counts.items():
         if count < PORTABLE_FROM_BATCHES_PER_WORKER * workers or config.runtime == "onnx" \
                 or Path(path).suffix.lower() == ".onnx":
@@ -301,9 +308,9 @@ def _add_portable_models(tasks: list[dict], config: BenchConfig, workers: int) -
         policy = load_policy(path, trust=config.trust_model, runtime=config.runtime,
                              **config.policy_options())
         portable = policy.portable(config.batch)
-        for task in tasks:
-            if task["kind"] == "model" and task["model"] == path:
-                task["portable"] = portable
+        for index, task in enumerate(tasks):
+            if task.kind == "model" and task.model == path:
+                tasks[index] = replace(task, portable=portable)
 
 
 def offline_mse(model_path: str, rows: list, *, trust: bool = False,

@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from clonedrive.data.log_folder import RecordingFolderError
     from clonedrive.data.recorder import RecordConfig, record
     from clonedrive.data.row_sink import RecordingWriteError
+    from clonedrive.sim.conditions import RANDOMIZED_LOOK
     from clonedrive.world.track import TrackError
 
     problem = renderer_error(args, "record")
@@ -102,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             header=args.header,
             relative_paths=args.relative_paths, jpeg_quality=args.jpeg_quality,
             start_time=args.start_time, scenery=not args.no_scenery,
-            look="randomized" if args.randomize else args.look, renderer=args.renderer,
+            look=RANDOMIZED_LOOK if args.randomize else args.look, renderer=args.renderer,
         )
         summary = record(config, args.out, progress=not args.json and sys.stderr.isatty())
     except (ValueError, TrackError) as error:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clonedrive.bench.suite import reference_name
 from clonedrive.pipelines.dagger.config import DaggerConfig
 
 
@@ -62,7 +63,7 @@ def split_figures(runs: Sequence[dict], references: dict) -> dict:
     def figures(rows):
         km = sum(r["distance_m"] for r in rows) / 1000.0
         clean = [r for r in rows if r["laps_completed"] >= r["laps_target"]]
-        ref = {id(r): references.get(_reference_key(r["track"], r["speed_mph"])) or {}
+        ref = {id(r): references.get(reference_name(r["track"], r["speed_mph"])) or {}
                for r in rows}
         ratios = [r["lap_time_s"] / ref[id(r)]["lap_time_s"] for r in clean
                   if r.get("lap_time_s") and ref[id(r)].get("lap_time_s")]
@@ -86,10 +87,6 @@ def split_figures(runs: Sequence[dict], references: dict) -> dict:
     return splits
 
 
-def _reference_key(track: str, speed_mph: float) -> str:
-    return f"{track}@{float(speed_mph):g}"
-
-
 def expert_references(config: DaggerConfig) -> dict:
     """The expert's figures on every evaluation (track, speed): its lap time and smoothness
     (:func:`clonedrive.evaluate.reference.expert_reference`); the benchmark brings its own."""
@@ -100,7 +97,7 @@ def expert_references(config: DaggerConfig) -> dict:
         return {}
     names = list(config.eval_tracks) + [f"gen:{UNSEEN_SEED_BASE + index}"
                                         for index in range(config.eval_unseen)]
-    return {_reference_key(name, config.speed_mph):
+    return {reference_name(name, config.speed_mph):
             expert_reference(name, config.speed_mph, laps=config.eval_laps,
                              max_seconds=config.max_seconds)
             for name in names}

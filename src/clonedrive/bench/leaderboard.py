@@ -142,12 +142,30 @@ def markdown(report: dict, images: list[str]) -> str:
                   f"{_value(offline['vs_success_pct']['spearman'])}; with interventions/km "
                   f"Pearson {_value(offline['vs_interventions_per_km']['pearson'])}, Spearman "
                   f"{_value(offline['vs_interventions_per_km']['spearman'])}."]
+    lines += _agreement_lines(report.get("dev_agreement"))
+    merged = (report.get("settings") or {}).get("merged_from")
+    if merged:
+        lines += ["", f"Merged from {len(merged)} bench runs: "
+                  + ", ".join(f"`{_md(name)}`" for name in merged) + "."]
     lines += ["", "## Splits", ""]
     lines += [f"- **{_md(s['name'])}**: {_md(s['description'])} ({len(s['tracks'])} tracks x "
               f"{', '.join(f'{v:g}' for v in s['speeds_mph'])} mph x "
               f"{_md(', '.join(s['conditions']))})" for s in suite["splits"]]
     lines += [""] + [f"![{_md(name)}]({name})" for name in images] + [""]
     return "\n".join(lines)
+
+
+def _agreement_lines(agreement: dict | None) -> list[str]:
+    """The dev tier's ranking of the models against their other episodes' (two or more)."""
+    if not agreement:
+        return []
+    score, success = agreement["driving_score"], agreement["success_pct"]
+    return ["", "## The dev tier against the rest", "",
+            f"Over {agreement['models']} models, the dev tier's driving score against the "
+            f"driving score on every other episode: Spearman {_value(score['spearman'])}, "
+            f"Pearson {_value(score['pearson'])}; success %: Spearman "
+            f"{_value(success['spearman'])}, Pearson {_value(success['pearson'])}. "
+            "(Spearman 1.0: the dev tier ranks the models as the rest of the suite does.)"]
 
 
 def _html(report: dict, images: list[Path]) -> str:

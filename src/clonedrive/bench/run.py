@@ -27,6 +27,7 @@ from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.scores import (
     correlation,
+    dev_agreement,
     method_intervals,
     method_scores,
     run_scores,
@@ -233,6 +234,14 @@ def assemble(tasks: list[BatchTask], results: dict[int, list[dict]], config: Ben
         for run in results.get(index, []):
             ref = reference.get(_reference_of(run))
             model["runs"].append({**run, "scores": run_scores(run, ref)})
+    methods = summarize(models, split_names)
+    return {"reference": reference, "models": models, "methods": methods,
+            "split_names": split_names, "dev_agreement": dev_agreement(models)}
+
+
+def summarize(models: dict[str, dict], split_names: list[str]) -> dict[str, dict]:
+    """Fill in each model's per-split and overall figures from its scored runs; returns the
+    methods (models by label) with their mean +- std and hierarchical intervals."""
     for model in models.values():
         model["splits"] = {}
         for split in split_names:
@@ -248,8 +257,7 @@ def assemble(tasks: list[BatchTask], results: dict[int, list[dict]], config: Ben
         complete = [m for m in members if set(m["splits"]) == set(split_names)]
         method["scores"] = method_scores(complete, split_names) if complete else {}
         method["ci"] = method_intervals(complete, split_names) if complete else {}
-    return {"reference": reference, "models": models, "methods": methods,
-            "split_names": split_names}
+    return methods
 
 
 def add_offline(report: dict, config: BenchConfig) -> None:

@@ -14,6 +14,10 @@ mean +- standard deviation over its models (sample std, n - 1).
 Offline against closed loop: Pearson and Spearman correlation, over models, of the offline
 validation MSE with the overall success % and interventions per km (Codevilla et al. 2018 found
 offline error a poor predictor of driving).
+
+The dev tier against the rest: over models that drove the :data:`DEV_SPLIT` and other splits,
+the correlation of their dev driving score with their driving score on every other episode
+(how well the quick tier ranks models as the full suite does).
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ SPLIT_FIGURES = ("success_pct", "interventions_per_km", "autonomy_pct", "mean_ab
                  "lap_time_ratio", "smoothness_ratio", "driving_score")
 #: The driving score's factor per intervention (CARLA-style: completion x penalties).
 INTERVENTION_PENALTY = 0.7
+#: The name of a suite's quick tier, whose ranking of models is checked against the rest.
+DEV_SPLIT = "dev"
 
 
 def driving_score(run: dict) -> float:
@@ -159,3 +165,23 @@ def correlation(x: Sequence[float], y: Sequence[float]) -> dict:
             r = float(np.corrcoef(u, v)[0, 1])
             out[name] = round(r, 4) if math.isfinite(r) else None
     return out
+
+
+def dev_agreement(models: dict[str, dict]) -> dict | None:
+    """How the :data:`DEV_SPLIT` ranks ``models`` against all their other episodes: the
+    correlation (over models) of the dev tier's mean driving score with the mean driving score
+    of the rest, and of their success %. None unless at least two models drove both."""
+    dev, rest, dev_success, rest_success = [], [], [], []
+    for model in models.values():
+        inside = [r["scores"] for r in model["runs"] if r["split"] == DEV_SPLIT]
+        outside = [r["scores"] for r in model["runs"] if r["split"] != DEV_SPLIT]
+        if not inside or not outside:
+            continue
+        dev.append(_mean([s["driving_score"] for s in inside]))
+        rest.append(_mean([s["driving_score"] for s in outside]))
+        dev_success.append(100.0 * float(np.mean([s["clean"] for s in inside])))
+        rest_success.append(100.0 * float(np.mean([s["clean"] for s in outside])))
+    if len(dev) < 2:
+        return None
+    return {"models": len(dev), "driving_score": correlation(dev, rest),
+            "success_pct": correlation(dev_success, rest_success)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.commands.counts import MAX_RUN_BATCH, MAX_WORKERS, count
@@ -26,19 +27,23 @@ DESCRIPTION = (
     "Ray with --ray; the results are the same either way. `clonedrive bench compare A B` "
     "compares two bench runs (a folder or bench.json, PATH:LABEL for one method of it) on the "
     "episodes both drove: the difference in each figure with its interval, a permutation-test "
-    "p-value, and a sentence saying whether A or B is better."
+    "p-value, and a sentence saying whether A or B is better. `clonedrive bench merge RUN... "
+    "--out DIR` merges bench runs of one suite made apart (a split or a model at a time) into "
+    "one bench.json and leaderboard (--compact keeps only each run's figures)."
 )
 #: Example command lines, shown at the end of ``clonedrive bench --help``.
 EXAMPLES = (
     "clonedrive bench runs/x/model.keras --out runs/x/bench",
     "clonedrive bench a=runs/a/model.keras b=runs/b/model.keras --split new-tracks-hard",
     "clonedrive bench compare runs/a/bench runs/b/bench",
+    "clonedrive bench merge runs/x/dev runs/x/hard-30 --out runs/x/bench",
 )
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("models", nargs="+", metavar="MODEL",
-                        help="PATH or LABEL=PATH; or: compare A B (two bench runs)")
+                        help="PATH or LABEL=PATH; or: compare A B (two bench runs); or: "
+                             "merge RUN... (bench runs of one suite)")
     parser.add_argument("--suite", default=DEFAULT_SUITE,
                         help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE})")
     parser.add_argument("--split", action="append", default=None, metavar="NAME",
@@ -58,6 +63,8 @@ def add_arguments(parser) -> None:
     add_render_arguments(parser)
     parser.add_argument("--out", default="runs/bench", help="output folder")
     parser.add_argument("--json", action="store_true", help="print bench.json's content")
+    parser.add_argument("--compact", action="store_true",
+                        help="merge: keep only each run's episode, outcome and scores")
     add_model_arguments(parser)
     add_steering_arguments(parser)
 
@@ -65,8 +72,9 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     if args.models[0] == "compare":
         return _compare(args)
+    if args.models[0] == "merge":
+        return _merge(args)
     from clonedrive.base.paths import check_output_folder
-    from clonedrive.bench.leaderboard import tables
     from clonedrive.bench.run import BenchConfig, bench
     from clonedrive.bench.suite import SuiteError, load_suite
     from clonedrive.data.output_lock import claim_output
@@ -95,11 +103,51 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
+    _print_methods(report)
+    print(f"wrote {args.out}/bench.json, leaderboard.md, leaderboard.html")
+    return 0
+
+
+def _print_methods(report: dict) -> None:
+    from clonedrive.bench.leaderboard import tables
+
     head, rows, _, _ = tables(report)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     for row in [head, *rows]:
         print("  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)))
-    print(f"wrote {args.out}/bench.json, leaderboard.md, leaderboard.html")
+
+
+def _merge(args) -> int:
+    """``bench merge RUN... --out DIR``: one bench.json and leaderboard from several runs."""
+    from clonedrive.base.config import write_json_atomic, write_text_atomic
+    from clonedrive.base.paths import check_output_folder
+    from clonedrive.bench.leaderboard import write_leaderboard
+    from clonedrive.bench.merge import MergeError, load_bench_run, merge_reports
+
+    if len(args.models) < 2:
+        print("clonedrive bench: merge takes bench runs: merge RUN... --out DIR",
+              file=sys.stderr)
+        return 2
+    try:
+        named = [(spec, load_bench_run(spec)) for spec in args.models[1:]]
+        report = merge_reports(named, compact=args.compact)
+        check_output_folder(args.out)
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        if args.compact:  # for keeping in a repository: one line, no indentation
+            write_text_atomic(Path(args.out) / "bench.json",
+                              json.dumps(report, separators=(",", ":")) + "\n")
+        else:
+            write_json_atomic(Path(args.out) / "bench.json", report)
+        write_leaderboard(report, args.out)
+    except (MergeError, OSError, ValueError) as error:
+        print(f"clonedrive bench: {error}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return 0
+    _print_methods(report)
+    print(f"merged {len(named)} bench run(s); wrote {args.out}/bench.json, leaderboard.md, "
+          "leaderboard.html")
     return 0
 
 

@@ -51,6 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from clonedrive.model.train_config import TrainConfig
 
     d = TrainConfig()
+    r = "default: the recipe's, else"  # an option left out takes the recipe's value
     given = argparse.SUPPRESS  # an option not given leaves no attribute (see _overrides)
     parser.add_argument("dirs", nargs="*", metavar="DIR",
                         help="recording folders (driving_log.csv + IMG/), default recipe each")
@@ -62,21 +63,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the folder holding a recipe's recordings by name (no DIRs)")
     parser.add_argument("--out", type=Path, required=True, help="run folder to write")
     parser.add_argument("--model", default=given, choices=MODEL_CHOICES,
-                        help=f"architecture (default {d.model})")
+                        help=f"architecture ({r} {d.model})")
     parser.add_argument("--epochs", type=count(MAX_EPOCHS), default=given,
-                        help=f"total epochs (default {d.epochs})")
+                        help=f"total epochs ({r} {d.epochs})")
     parser.add_argument("--lr", dest="learning_rate", type=float, default=given,
-                        help=f"Adam learning rate (default {d.learning_rate:g})")
+                        help=f"Adam learning rate ({r} {d.learning_rate:g})")
     parser.add_argument("--batch-size", type=count(MAX_BATCH_SIZE), default=given,
-                        help=f"batch size (default {d.batch_size})")
+                        help=f"batch size ({r} {d.batch_size})")
     parser.add_argument("--split", default=given, choices=("random", "blocks", "recording"),
-                        help=f"train/validation split (default {d.split})")
+                        help=f"train/validation split ({r} {d.split})")
     parser.add_argument("--val-fraction", type=float, default=given,
-                        help=f"share of rows for validation (default {d.val_fraction})")
+                        help=f"share of rows for validation ({r} {d.val_fraction})")
     parser.add_argument("--block-s", type=float, default=given,
-                        help=f"block length of --split blocks, seconds (default {d.block_s:g})")
+                        help=f"block length of --split blocks, seconds ({r} {d.block_s:g})")
     parser.add_argument("--correction", type=float, default=given,
-                        help=f"side-camera steering correction for DIRs (default {d.correction})")
+                        help=f"side-camera steering correction for DIRs ({r} {d.correction})")
     parser.add_argument("--no-balance", dest="balance", action="store_false", default=given,
                         help="keep every sample (no steering histogram balancing)")
     parser.add_argument("--no-augment", dest="augment", action="store_false", default=given,
@@ -85,38 +86,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")
     parser.add_argument("--dropout", type=float, default=given,
-                        help=f"dropout rate, 0 = off (default {d.dropout})")
-    parser.add_argument("--seed", type=int, default=given, help=f"random seed (default {d.seed})")
+                        help=f"dropout rate, 0 = off ({r} {d.dropout})")
+    parser.add_argument("--seed", type=int, default=given,
+                        help=f"random seed ({r} {d.seed})")
     parser.add_argument("--workers", type=count(MAX_TRAIN_WORKERS), default=given,
-                        help=f"batch-preparing threads (default {d.workers})")
+                        help=f"batch-preparing threads ({r} {d.workers})")
     parser.add_argument("--cache", default=given, choices=("auto", "memory", "memmap"),
-                        help=f"where decoded images live (default {d.cache})")
+                        help=f"where decoded images live ({r} {d.cache})")
     parser.add_argument("--speed-head", action="store_true", default=given,
                         help="also learn the expert's target speed (a second output, "
                              "'target_speed'); drive, evaluate and bench then use it, capped "
                              "by the set speed. Udacity's own drive.py expects one output")
     parser.add_argument("--speed-loss-weight", type=float, default=given,
-                        help=f"weight of the speed loss (default {d.speed_loss_weight:g})")
+                        help=f"weight of the speed loss ({r} {d.speed_loss_weight:g})")
     parser.add_argument("--speed-loss", default=given, choices=SPEED_LOSSES,
-                        help=f"the speed head's loss (default {d.speed_loss}); censored: a "
+                        help=f"the speed head's loss ({r} {d.speed_loss}); censored: a "
                              "label at the top speed (every straight) means 'at least that', so "
                              "predicting above it costs nothing")
     parser.add_argument("--speed-headroom", type=float, default=given, metavar="H",
                         help=f"speed labels at the top speed (every straight) continue the "
                              f"expert's braking profile above it, up to H times it, H in [1, 2] "
-                             f"(default {d.speed_headroom:g}: off). The policy caps the learned "
+                             f"({r} {d.speed_headroom:g}: off). The policy caps the learned "
                              "speed at the set speed, so the head's scatter on a straight lands "
                              "above the cap, not below (see data/speed_labels.py)")
     parser.add_argument("--crop-top", dest="crop_top_px", type=count(MAX_CROP_TOP_PX),
                         default=given, metavar="PX",
-                        help=f"rows cut from the top of the frame (default {d.crop_top_px}: the "
+                        help=f"rows cut from the top of the frame ({r} {d.crop_top_px}: the "
                              "road 2-7 m ahead; 60 sees about 36 m, bends a speed head must "
                              "brake for)")
     parser.add_argument("--consistency", type=float, default=given, metavar="W",
                         help=f"train each sample beside its next frame (1/15 s later) and add W "
                              f"times the squared difference of their errors to the steering "
                              f"loss: less frame-to-frame noise in the predicted steering, a "
-                             f"steadier wheel (default {d.consistency:g}: off). Each step then "
+                             f"steadier wheel ({r} {d.consistency:g}: off). Each step then "
                              "takes twice the images (see model/consistency.py)")
     parser.add_argument("--init-from", type=str, default=given, metavar="MODEL",
                         help="start from this model's weights (layers matched by name)")

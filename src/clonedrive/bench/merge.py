@@ -1,0 +1,146 @@
+"""``clonedrive bench merge``: bench runs of one suite, made apart, as one bench run.
+
+A full suite for several models takes hours on a small machine; it can be run a split or a
+model at a time, on one machine or several, and merged. The merged bench.json holds every
+model's runs from every input, its figures recomputed over all of them (per split, overall, per
+method with the hierarchical intervals), the expert references, the offline MSE where an input
+measured it, and the dev tier's agreement with the rest
+(:func:`clonedrive.bench.scores.dev_agreement`).
+
+Inputs must come from the same suite id and the same renderer (frames differ slightly between
+renderers), and no model may have driven one episode twice. Each model's runs are put in the
+suite's order, so the intervals do not depend on the order of the inputs. ``compact`` keeps of
+each run only what the figures and ``bench compare`` need, for results kept in a repository.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from clonedrive.bench.run import BENCH_FORMAT, summarize
+from clonedrive.bench.scores import correlation, dev_agreement
+
+#: What a compacted run keeps: its episode, what its split's figures are pooled from, and its
+#: scores (no traces, no conditions); :func:`clonedrive.bench.scores.split_scores` and
+#: ``bench compare`` need no more.
+COMPACT_RUN_FIELDS = ("key", "split", "track", "interventions", "distance_m", "scores")
+
+
+class MergeError(ValueError):
+    """Bench runs that cannot be merged; the message names the run and why."""
+
+
+def load_bench_run(spec: str) -> dict:
+    """A finished bench run's bench.json (``spec``: its folder or the file, or ``LABEL=`` and
+    either: every model of the run is then labelled ``LABEL``, one method)."""
+    from clonedrive.base.config import read_json
+
+    label, _, path_text = spec.rpartition("=") if not Path(spec).exists() else ("", "", spec)
+    path = Path(path_text)
+    path = path / "bench.json" if path.is_dir() else path
+    if not path.is_file():
+        raise MergeError(f"{spec}: no bench.json there")
+    report = read_json(path)
+    if not isinstance(report, dict) or not isinstance(report.get("models"), dict):
+        raise MergeError(f"{path}: not a bench.json with models")
+    if not report.get("complete"):
+        raise MergeError(f"{path}: an unfinished bench run (its \"complete\" is not true)")
+    if label:
+        for model in report["models"].values():
+            model["label"] = label
+        report["driving"] = {label: next(iter(report.get("driving", {}).values()), {})}
+    return report
+
+
+def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False) -> dict:
+    """One bench report from ``(name, bench.json content)`` pairs of one suite."""
+    if not named:
+        raise MergeError("nothing to merge")
+    first_name, first = named[0]
+    for name, report in named[1:]:
+        _check_same(first_name, first, name, report)
+    models: dict[str, dict] = {}
+    reference: dict[str, dict] = {}
+    offline = None
+    for name, report in named:
+        reference.update(report.get("reference", {}))
+        if report.get("offline"):
+            if offline and offline.get("data") != report["offline"].get("data"):
+                raise MergeError(f"{name}: its offline MSE is on other held-out data than "
+                                 "another run's")
+            offline = report["offline"]
+        for entry, model in report["models"].items():
+            _add_model(models, entry, model, name, compact)
+    splits = {run["split"] for model in models.values() for run in model["runs"]}
+    lists = sorted((_suite_splits(report) for _, report in named), key=len, reverse=True)
+    order = [s for names in lists for s in names]  # the fullest suite's order first
+    split_names = [s for s in dict.fromkeys(order) if s in splits]
+    position = {name: i for i, name in enumerate(split_names)}
+    for model in models.values():  # the same merged figures whatever the inputs' order
+        model["runs"].sort(key=lambda run: (position[run["split"]], run["key"]))
+    methods = summarize(models, split_names)
+    merged = {
+        "format": BENCH_FORMAT, "suite": first["suite"],
+        "settings": {"merged_from": [source for name, report in named
+                                     for source in _sources(name, report)]},
+        "speed_control": first.get("speed_control") or "as each input run says",
+        "driving": {k: v for _, r in named for k, v in r.get("driving", {}).items()},
+        "rendering": first.get("rendering"), "complete": True,
+        "reference": {} if compact else reference, "models": models, "methods": methods,
+        "split_names": split_names, "dev_agreement": dev_agreement(models),
+    }
+    if offline and all("offline_mse" in m for m in models.values()):
+        merged["offline"] = _offline(offline, models)
+    return merged
+
+
+def _sources(name: str, report: dict) -> list[str]:
+    """The runs a report was made from: itself, or what it was merged from."""
+    return list((report.get("settings") or {}).get("merged_from") or [name])
+
+
+def _suite_splits(report: dict) -> list[str]:
+    return [split["name"] for split in report["suite"].get("splits", [])]
+
+
+def _check_same(first_name: str, first: dict, name: str, report: dict) -> None:
+    suite_a, suite_b = first.get("suite", {}).get("id"), report.get("suite", {}).get("id")
+    if suite_a != suite_b:
+        raise MergeError(f"{name} is of suite {suite_b}, {first_name} of {suite_a}: "
+                         "their episodes are not the same")
+    used_a = (first.get("rendering") or {}).get("renderer_used")
+    used_b = (report.get("rendering") or {}).get("renderer_used")
+    if used_a != used_b:
+        raise MergeError(f"{name} was drawn by the {used_b} renderer, {first_name} by "
+                         f"{used_a}: frames differ between renderers")
+
+
+def _add_model(models: dict, entry: str, model: dict, source: str, compact: bool) -> None:
+    merged = models.setdefault(entry, {"label": model["label"], "path": model["path"],
+                                       "runs": []})
+    if merged["label"] != model["label"]:
+        raise MergeError(f"{source}: model {model['path']} is labelled {model['label']!r} "
+                         f"there and {merged['label']!r} in another run")
+    seen = {run["key"] for run in merged["runs"]}
+    for run in model.get("runs", []):
+        if run["key"] in seen:
+            raise MergeError(f"{source}: model {entry} drove episode {run['key']} in another "
+                             "run too")
+        merged["runs"].append({k: run[k] for k in COMPACT_RUN_FIELDS if k in run}
+                              if compact else run)
+    if "offline_mse" in model:
+        merged["offline_mse"] = model["offline_mse"]
+
+
+def _offline(offline: dict, models: dict) -> dict:
+    mse = [m["offline_mse"] for m in models.values()]
+    return {
+        "data": offline.get("data"), "rows": offline.get("rows"),
+        "vs_success_pct": correlation(
+            mse, [m["overall"].get("success_pct") for m in models.values()]),
+        "vs_interventions_per_km": correlation(
+            mse, [m["overall"].get("interventions_per_km") for m in models.values()]),
+        "vs_driving_score": correlation(
+            mse, [m["overall"].get("driving_score") for m in models.values()]),
+    }

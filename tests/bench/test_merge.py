@@ -1,0 +1,168 @@
+"""``clonedrive bench merge``: bench runs of one suite made a split at a time become one run
+whose figures equal those of all the episodes scored together, with the dev tier's agreement
+with the rest; runs that cannot be merged are refused, naming the run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clonedrive.bench.merge import COMPACT_RUN_FIELDS, MergeError, merge_reports
+from clonedrive.bench.run import summarize
+from clonedrive.bench.scores import dev_agreement
+from clonedrive.cli import main
+
+SPLITS = ("easy", "hard", "dev")
+
+
+def _run(split: str, index: int, score: float) -> dict:
+    clean = score > 0.99
+    return {"key": f"{split}/{index:03d}", "split": split, "index": index, "track": "lake",
+            "distance_m": 400.0 + 10 * index, "interventions": 0 if clean else 1,
+            "clean": clean, "conditions": {"light": 0.5}, "steering_trace": [0.0] * 50,
+            "scores": {"clean": clean, "interventions_per_km": 0.0 if clean else 2.5,
+                       "autonomy_pct": 100.0 if clean else 95.0, "mean_abs_cte_m": 0.3,
+                       "lap_time_ratio": 1.02 if clean else None, "smoothness_ratio": 1.5,
+                       "driving_score": score}}
+
+
+def _model_runs(quality: float, seed: int) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    runs = []
+    for split in SPLITS:
+        for index in range(8):
+            score = 1.0 if rng.random() < quality else round(float(rng.uniform(0.2, 0.9)), 4)
+            runs.append(_run(split, index, score))
+    return runs
+
+
+def _report(models: dict[str, list[dict]], splits: tuple[str, ...], *, suite: str = "s",
+            renderer: str = "software") -> dict:
+    chosen = {path: {"label": Path(path).stem, "path": path,
+                     "runs": [r for r in runs if r["split"] in splits]}
+              for path, runs in models.items()}
+    splits_table = [{"name": s, "description": f"the {s} split", "tracks": ["lake"],
+                     "speeds_mph": [20.0], "conditions": ["clear"]} for s in SPLITS]
+    return {"suite": {"id": suite, "description": "a suite for the test", "laps": 1,
+                      "splits": splits_table},
+            "rendering": {"renderer_used": renderer}, "complete": True,
+            "reference": {f"lake@{len(splits)}": {"lap_time_s": 60.0}},
+            "driving": {Path(p).stem: {} for p in models}, "models": chosen}
+
+
+@pytest.fixture
+def models() -> dict[str, list[dict]]:
+    return {f"/m/q{int(q * 100)}.keras": _model_runs(q, seed)
+            for seed, q in enumerate((0.2, 0.5, 0.8, 0.95))}
+
+
+def test_split_by_split_runs_merge_to_the_figures_of_all_episodes(models) -> None:
+    parts = [(split, _report(models, (split,))) for split in reversed(SPLITS)]
+    merged = merge_reports(parts)
+    whole = {path: {"label": Path(path).stem, "path": path, "runs": runs}
+             for path, runs in models.items()}
+    methods = summarize(whole, list(SPLITS))
+    assert merged["split_names"] == list(SPLITS)  # the suite's order, not the inputs'
+    for path, model in whole.items():
+        got = merged["models"][path]
+        assert len(got["runs"]) == 24
+        assert got["splits"] == model["splits"] and got["overall"] == model["overall"]
+    assert merged["methods"] == methods and merged["complete"]
+    assert merged["settings"]["merged_from"] == ["dev", "hard", "easy"]
+    assert len(merged["reference"]) == 1  # the three runs' references, one name
+    # The dev tier ranks the four models as the other splits do here.
+    agreement = merged["dev_agreement"]
+    assert agreement == dev_agreement(whole) and agreement["models"] == 4
+    dev = [np.mean([r["scores"]["driving_score"] for r in runs if r["split"] == "dev"])
+           for runs in models.values()]
+    rest = [np.mean([r["scores"]["driving_score"] for r in runs if r["split"] != "dev"])
+            for runs in models.values()]
+    assert agreement["driving_score"]["pearson"] == pytest.approx(
+        np.corrcoef(dev, rest)[0, 1], abs=1e-4)
+
+
+def test_compact_keeps_each_runs_figures_and_drops_its_traces(models) -> None:
+    parts = [(split, _report(models, (split,))) for split in SPLITS]
+    merged = merge_reports(parts, compact=True)
+    full = merge_reports(parts)
+    run = merged["models"]["/m/q20.keras"]["runs"][0]
+    assert "steering_trace" not in run and "conditions" not in run
+    assert set(run) <= set(COMPACT_RUN_FIELDS) and run["scores"]["driving_score"] > 0
+    assert merged["methods"] == full["methods"] and merged["reference"] == {}
+
+
+def test_runs_that_cannot_be_merged_are_refused_naming_the_run(models) -> None:
+    easy = ("easy.json", _report(models, ("easy",)))
+    with pytest.raises(MergeError, match=r"other\.json is of suite t"):
+        merge_reports([easy, ("other.json", _report(models, ("hard",), suite="t"))])
+    with pytest.raises(MergeError, match=r"gl\.json was drawn by the egl renderer"):
+        merge_reports([easy, ("gl.json", _report(models, ("hard",), renderer="egl"))])
+    with pytest.raises(MergeError, match=r"again\.json: model /m/q20\.keras drove episode "
+                                         r"easy/000 in another run too"):
+        merge_reports([easy, ("again.json", _report(models, ("easy",)))])
+    relabelled = _report(models, ("hard",))
+    relabelled["models"]["/m/q20.keras"]["label"] = "other"
+    with pytest.raises(MergeError, match=r"labelled 'other' there and 'q20'"):
+        merge_reports([easy, ("r.json", relabelled)])
+    with pytest.raises(MergeError, match="nothing to merge"):
+        merge_reports([])
+
+
+def test_the_merge_command_relabels_writes_a_leaderboard_and_compare_reads_it(
+        tmp_path: Path, models, capsys: pytest.CaptureFixture) -> None:
+    for split in SPLITS:
+        folder = tmp_path / split
+        folder.mkdir()
+        (folder / "bench.json").write_text(json.dumps(_report(models, (split,))),
+                                           encoding="utf-8")
+    weak = {p: r for p, r in models.items() if p.endswith(("q20.keras", "q50.keras"))}
+    strong = {p: r for p, r in models.items() if p not in weak}
+    for name, chosen in (("weak", weak), ("strong", strong)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "bench.json").write_text(json.dumps(_report(chosen, SPLITS)),
+                                                   encoding="utf-8")
+    out = tmp_path / "merged"
+    assert main(["bench", "merge", *(str(tmp_path / s) for s in SPLITS), "--out",
+                 str(out)]) == 0
+    assert "merged 3 bench run(s)" in capsys.readouterr().out
+    assert set(json.loads((out / "bench.json").read_text())["methods"]) == {
+        "q20", "q50", "q80", "q95"}
+    page = (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert "## The dev tier against the rest" in page and "Over 4 models" in page
+    assert "Merged from 3 bench runs" in page and (out / "bench_success.png").is_file()
+    # LABEL=RUN makes every model of a run one method (training seeds of one recipe).
+    assert main(["bench", "merge", f"weak={tmp_path / 'weak'}",
+                 f"strong={tmp_path / 'strong'}", "--out", str(out), "--compact"]) == 0
+    report = json.loads((out / "bench.json").read_text())
+    assert {m: len(v["models"]) for m, v in report["methods"].items()} == {"weak": 2,
+                                                                            "strong": 2}
+    capsys.readouterr()
+    assert main(["bench", "compare", f"{out}:strong", f"{out}:weak", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)["comparisons"][0]
+    assert result["episodes"] == 24 and result["difference"] > 0
+    # Refusals: an unfinished run, a folder without bench.json, nothing to merge.
+    unfinished = _report(models, ("easy",))
+    unfinished["complete"] = False
+    (tmp_path / "half").mkdir()
+    (tmp_path / "half" / "bench.json").write_text(json.dumps(unfinished), encoding="utf-8")
+    assert main(["bench", "merge", str(tmp_path / "half"), "--out", str(out)]) == 2
+    assert "an unfinished bench run" in capsys.readouterr().err
+    assert main(["bench", "merge", str(tmp_path / "nothing"), "--out", str(out)]) == 2
+    assert "no bench.json there" in capsys.readouterr().err
+    assert main(["bench", "merge", "--out", str(out)]) == 2
+
+
+def test_the_repositorys_leaderboard_page_is_made_from_its_data() -> None:
+    from clonedrive.bench.leaderboard import markdown
+    from clonedrive.bench.merge import load_bench_run
+
+    board = Path(__file__).resolve().parents[2] / "docs" / "leaderboard"
+    report = load_bench_run(str(board))
+    again = merge_reports([(str(board), report)], compact=True)
+    assert again["settings"] == report["settings"]  # a merged run names what it came from
+    assert again["methods"] == report["methods"] and again["models"] == report["models"]
+    page = markdown(again, ["bench_success.png", "bench_lap_time.png"])
+    assert page == (board / "leaderboard.md").read_text(encoding="utf-8")

@@ -107,6 +107,10 @@ def test_runs_that_cannot_be_merged_are_refused_naming_the_run(models) -> None:
     relabelled["models"]["/m/q20.keras"]["label"] = "other"
     with pytest.raises(MergeError, match=r"labelled 'other' there and 'q20'"):
         merge_reports([easy, ("r.json", relabelled)])
+    steadier = _report(models, ("hard",))
+    steadier["driving"]["q20"] = {"steering_hold": 0.05}
+    with pytest.raises(MergeError, match=r"h\.json: method 'q20' drives with other settings"):
+        merge_reports([easy, ("h.json", steadier)])
     with pytest.raises(MergeError, match="nothing to merge"):
         merge_reports([])
 
@@ -143,7 +147,14 @@ def test_the_merge_command_relabels_writes_a_leaderboard_and_compare_reads_it(
     assert main(["bench", "compare", f"{out}:strong", f"{out}:weak", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)["comparisons"][0]
     assert result["episodes"] == 24 and result["difference"] > 0
-    # Refusals: an unfinished run, a folder without bench.json, nothing to merge.
+    # Refusals: models driven alike only can be one method; an unfinished run, a folder
+    # without bench.json, nothing to merge.
+    mixed = _report(models, ("easy",))
+    mixed["driving"]["q50"] = {"mirror_average": True}
+    (tmp_path / "mixed").mkdir()
+    (tmp_path / "mixed" / "bench.json").write_text(json.dumps(mixed), encoding="utf-8")
+    assert main(["bench", "merge", f"one={tmp_path / 'mixed'}", "--out", str(out)]) == 2
+    assert "cannot be one method 'one'" in capsys.readouterr().err
     unfinished = _report(models, ("easy",))
     unfinished["complete"] = False
     (tmp_path / "half").mkdir()

@@ -47,9 +47,13 @@ def load_bench_run(spec: str) -> dict:
     if not report.get("complete"):
         raise MergeError(f"{path}: an unfinished bench run (its \"complete\" is not true)")
     if label:
+        settings = list(report.get("driving", {}).values())
+        if any(other != settings[0] for other in settings[1:]):
+            raise MergeError(f"{path}: its models drive with different settings, so they "
+                             f"cannot be one method {label!r}")
         for model in report["models"].values():
             model["label"] = label
-        report["driving"] = {label: next(iter(report.get("driving", {}).values()), {})}
+        report["driving"] = {label: settings[0] if settings else {}}
     return report
 
 
@@ -85,7 +89,7 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False) -
         "settings": {"merged_from": [source for name, report in named
                                      for source in _sources(name, report)]},
         "speed_control": first.get("speed_control") or "as each input run says",
-        "driving": {k: v for _, r in named for k, v in r.get("driving", {}).items()},
+        "driving": _driving(named),
         "rendering": first.get("rendering"), "complete": True,
         "reference": {} if compact else reference, "models": models, "methods": methods,
         "split_names": split_names, "dev_agreement": dev_agreement(models),
@@ -93,6 +97,17 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False) -
     if offline and all("offline_mse" in m for m in models.values()):
         merged["offline"] = _offline(offline, models)
     return merged
+
+
+def _driving(named: Sequence[tuple[str, dict]]) -> dict[str, dict]:
+    """Each method's driving settings, which must be the same in every run it is in."""
+    driving: dict[str, dict] = {}
+    for name, report in named:
+        for label, settings in report.get("driving", {}).items():
+            if driving.setdefault(label, settings) != settings:
+                raise MergeError(f"{name}: method {label!r} drives with other settings there "
+                                 f"({settings}) than in another run ({driving[label]})")
+    return driving
 
 
 def _sources(name: str, report: dict) -> list[str]:

@@ -141,7 +141,11 @@ def markdown(report: dict, images: list[str]) -> str:
                   f"{_value(offline['vs_success_pct']['pearson'])}, Spearman "
                   f"{_value(offline['vs_success_pct']['spearman'])}; with interventions/km "
                   f"Pearson {_value(offline['vs_interventions_per_km']['pearson'])}, Spearman "
-                  f"{_value(offline['vs_interventions_per_km']['spearman'])}."]
+                  f"{_value(offline['vs_interventions_per_km']['spearman'])}"
+                  + (f"; with the driving score Pearson "
+                     f"{_value(offline['vs_driving_score']['pearson'])}, Spearman "
+                     f"{_value(offline['vs_driving_score']['spearman'])}"
+                     if "vs_driving_score" in offline else "") + "."]
     lines += _agreement_lines(report.get("dev_agreement"))
     merged = (report.get("settings") or {}).get("merged_from")
     if merged:

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from clonedrive.bench.run import BENCH_FORMAT, summarize
-from clonedrive.bench.scores import correlation, dev_agreement
+from clonedrive.bench.scores import dev_agreement, offline_correlations
 
 #: What a compacted run keeps: its episode, what its split's figures are pooled from, and its
 #: scores (no traces, no conditions); :func:`clonedrive.bench.scores.split_scores` and
@@ -149,13 +149,5 @@ def _add_model(models: dict, entry: str, model: dict, source: str, compact: bool
 
 
 def _offline(offline: dict, models: dict) -> dict:
-    mse = [m["offline_mse"] for m in models.values()]
-    return {
-        "data": offline.get("data"), "rows": offline.get("rows"),
-        "vs_success_pct": correlation(
-            mse, [m["overall"].get("success_pct") for m in models.values()]),
-        "vs_interventions_per_km": correlation(
-            mse, [m["overall"].get("interventions_per_km") for m in models.values()]),
-        "vs_driving_score": correlation(
-            mse, [m["overall"].get("driving_score") for m in models.values()]),
-    }
+    return {"data": offline.get("data"), "rows": offline.get("rows"),
+            **offline_correlations(list(models.values()))}

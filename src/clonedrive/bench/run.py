@@ -26,10 +26,10 @@ from clonedrive.base.config import config_to_dict, write_json_atomic
 from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
 from clonedrive.bench import DEFAULT_SUITE
 from clonedrive.bench.scores import (
-    correlation,
     dev_agreement,
     method_intervals,
     method_scores,
+    offline_correlations,
     run_scores,
     split_scores,
 )
@@ -266,15 +266,8 @@ def add_offline(report: dict, config: BenchConfig) -> None:
     for model in report["models"].values():
         model["offline_mse"] = offline_mse(model["path"], rows, trust=config.trust_model,
                                            runtime=config.runtime)
-    models = list(report["models"].values())
-    mse = [m["offline_mse"] for m in models]
-    report["offline"] = {
-        "data": list(config.offline_data),
-        "rows": len(rows),
-        "vs_success_pct": correlation(mse, [m["overall"].get("success_pct") for m in models]),
-        "vs_interventions_per_km": correlation(
-            mse, [m["overall"].get("interventions_per_km") for m in models]),
-    }
+    report["offline"] = {"data": list(config.offline_data), "rows": len(rows),
+                         **offline_correlations(list(report["models"].values()))}
 
 
 def offline_rows(folders: tuple[str, ...]) -> list:

@@ -185,3 +185,11 @@ def dev_agreement(models: dict[str, dict]) -> dict | None:
         return None
     return {"models": len(dev), "driving_score": correlation(dev, rest),
             "success_pct": correlation(dev_success, rest_success)}
+
+
+def offline_correlations(models: Sequence[dict]) -> dict:
+    """Over ``models`` (each with ``offline_mse`` and ``overall`` figures): the correlation of
+    the offline MSE with success %, interventions per km and the driving score."""
+    mse = [m["offline_mse"] for m in models]
+    return {f"vs_{figure}": correlation(mse, [m["overall"].get(figure) for m in models])
+            for figure in ("success_pct", "interventions_per_km", "driving_score")}

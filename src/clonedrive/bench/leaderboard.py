@@ -92,18 +92,21 @@ def plot(report: dict, out: Path) -> list[Path]:
     import numpy as np
 
     splits = report.get("split_names", [])
-    models = report.get("models", {})
+    series = _plot_series(report)
     paths = []
     for figure, name, ylabel in (("success_pct", "bench_success.png", "clean-lap success %"),
                                  ("lap_time_ratio", "bench_lap_time.png",
                                   "lap time / expert's (clean laps)")):
         fig, ax = plt.subplots(figsize=(max(6.0, 1.4 * len(splits) + 2), 4.0))
-        width = 0.8 / max(1, len(models))
+        width = 0.8 / max(1, len(series))
         x = np.arange(len(splits))
-        for i, (entry, model) in enumerate(models.items()):
-            values = [model.get("splits", {}).get(s, {}).get(figure) for s in splits]
+        for i, (legend, figures) in enumerate(series.items()):
+            values = [figures.get(s, {}).get(figure, (None, None))[0] for s in splits]
+            spreads = [figures.get(s, {}).get(figure, (None, None))[1] for s in splits]
             heights = [np.nan if v is None else v for v in values]
-            bars = ax.bar(x + (i - (len(models) - 1) / 2) * width, heights, width, label=entry)
+            errors = [0.0 if e is None else e for e in spreads]
+            bars = ax.bar(x + (i - (len(series) - 1) / 2) * width, heights, width, label=legend,
+                          yerr=errors if any(errors) else None, capsize=2)
             ax.bar_label(bars, labels=["-" if v is None else f"{v:.0f}" if figure == "success_pct"
                                        else f"{v:.2f}" for v in values], fontsize=7)
         ax.set_xticks(x, splits, rotation=20, ha="right")
@@ -113,7 +116,7 @@ def plot(report: dict, out: Path) -> list[Path]:
         else:
             ax.axhline(1.0, color="grey", lw=0.8, ls="--")
         ax.set_title(f"suite {report['suite']['id']}: {ylabel}")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
         fig.tight_layout()
         path = out / name
         with atomic_path(path) as temporary:  # never through a link at the name
@@ -121,6 +124,22 @@ def plot(report: dict, out: Path) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def _plot_series(report: dict) -> dict[str, dict[str, dict[str, tuple]]]:
+    """What the plots draw: name -> split -> figure -> (value, spread). Per method (mean and
+    std over its models, named with their count) when some method has several models and
+    every method has figures; else per model."""
+    methods = report.get("methods", {})
+    grouped = any(len(m.get("models", [])) > 1 for m in methods.values())
+    if grouped and all(m.get("scores") for m in methods.values()):
+        return {f"{label} ({len(m['models'])} models)" if len(m["models"]) > 1 else label:
+                {split: {f: (v.get("mean"), v.get("std")) for f, v in figures.items()}
+                 for split, figures in m["scores"].items()}
+                for label, m in methods.items()}
+    return {entry: {split: {f: (v, None) for f, v in figures.items() if f != "ci"}
+                    for split, figures in model.get("splits", {}).items()}
+            for entry, model in report.get("models", {}).items()}
 
 
 def markdown(report: dict, images: list[str]) -> str:

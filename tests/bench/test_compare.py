@@ -97,5 +97,10 @@ def test_compare_finds_a_real_difference_and_none_between_seeds_of_one_recipe(
     assert main(["bench", "compare", str(good), str(other)]) == 2
     assert "different suites" in capsys.readouterr().err
     assert main(["bench", "compare", str(good)]) == 2
+    # One model of a method (one training seed) against another.
+    assert main(["bench", "compare", f"{good}:best=0", f"{good}:best=1", "--json"]) == 0
+    seeds_result = json.loads(capsys.readouterr().out)
+    assert seeds_result["comparisons"][0]["episodes"] == 30
+    assert seeds_result["a"].startswith("best=0")
     assert main(["bench", "compare", str(good), f"{bad}:nosuch"]) == 2
     assert "no method 'nosuch'" in capsys.readouterr().err

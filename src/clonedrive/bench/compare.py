@@ -1,10 +1,11 @@
 """``clonedrive bench compare A B``: two methods on the same episodes, with confidence.
 
 A and B each name a bench run (a folder holding ``bench.json``, or the file) and optionally one
-of its methods (``PATH:LABEL``; without a label the run must hold one method). A method's value
-on an episode is the mean over its models (its training seeds) on that episode; episodes pair by
-the suite's episode key (``split/index``), so both runs must come from the same suite. Each
-figure's comparison is :func:`clonedrive.bench.stats.paired_comparison`.
+of its methods (``PATH:LABEL``; without a label the run must hold one method) or one of its
+models (``PATH:ENTRY``, the model's key in bench.json, e.g. ``a=runs/a0/model.keras``). A
+method's value on an episode is the mean over its models (its training seeds) on that episode;
+episodes pair by the suite's episode key (``split/index``), so both runs must come from the
+same suite. Each figure's comparison is :func:`clonedrive.bench.stats.paired_comparison`.
 """
 
 from __future__ import annotations
@@ -47,9 +48,12 @@ def load_method(spec: str) -> tuple[str, dict, list[dict]]:
             raise CompareError(f"{path} holds {len(methods)} methods "
                                f"({', '.join(sorted(methods))}): name one as PATH:LABEL")
         label = next(iter(methods))
-    if label not in methods:
+    if label in methods:
+        models = [report["models"][entry] for entry in methods[label]["models"]]
+    elif label in report.get("models", {}):  # one model of a method: one training seed
+        models = [report["models"][label]]
+    else:
         raise CompareError(f"{path}: no method {label!r} (it has {', '.join(sorted(methods))})")
-    models = [report["models"][entry] for entry in methods[label]["models"]]
     runs = [run for model in models for run in model.get("runs", [])]
     return f"{label} ({path.parent.name})", report.get("suite", {}), runs
 

@@ -17,9 +17,10 @@ from clonedrive.commands.render_options import add_render_arguments, renderer_er
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
-    "Drive one or more models through every split of a benchmark suite (built in: v2; or a "
-    ".toml file copied from it): seen tracks, new generated tracks at three difficulties, "
-    "held-out conditions. The expert drives each track and speed cap once as the reference. "
+    "Drive one or more models through every split of a benchmark suite (built in: v3, the "
+    "default, and v2; or a .toml file copied from one): seen tracks, new generated tracks at "
+    "three difficulties, held-out conditions, harder tiers at the 30 mph cap. The expert "
+    "drives each track and speed cap once as the reference. "
     "Writes bench.json, leaderboard.md and leaderboard.html with plots. Give models as PATH or "
     "LABEL=PATH; models with the same label (one per training seed) are reported as mean +- "
     "std. Every figure carries a 95 % bootstrap interval over episodes (and over a method's "

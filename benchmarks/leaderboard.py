@@ -93,7 +93,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"exists, skipped: {command}")
             continue
         print(f"running: {command}", flush=True)
-        subprocess.run(shlex.split(command), check=True, cwd=ROOT)
+        code = subprocess.run(shlex.split(command), cwd=ROOT).returncode
+        if code:
+            print(f"stopped: that step failed (exit status {code}); the steps before it are "
+                  "kept and are skipped when the row is run again", file=sys.stderr)
+            return code
         ran.append(command)
     print(json.dumps({"row": args.row, "seed": args.seed, "steps": len(steps),
                       "ran": len(ran)}))

@@ -104,3 +104,7 @@ def test_compare_finds_a_real_difference_and_none_between_seeds_of_one_recipe(
     assert seeds_result["a"].startswith("best=0")
     assert main(["bench", "compare", str(good), f"{bad}:nosuch"]) == 2
     assert "no method 'nosuch'" in capsys.readouterr().err
+    listed = tmp_path / "list.json"
+    listed.write_text("[1, 2]", encoding="utf-8")
+    assert main(["bench", "compare", str(good), str(listed)]) == 2
+    assert "not a bench.json (its top level is not an object)" in capsys.readouterr().err

@@ -30,16 +30,12 @@ class CompareError(ValueError):
 
 def load_method(spec: str) -> tuple[str, dict, list[dict]]:
     """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of every model of the method)."""
-    from clonedrive.base.config import read_json
+    from clonedrive.bench.bench_file import read_bench_file
 
     path_text, _, label = spec.rpartition(":") if not Path(spec).exists() else (spec, "", "")
     if not path_text:
         path_text, label = label, ""
-    path = Path(path_text)
-    path = path / "bench.json" if path.is_dir() else path
-    if not path.is_file():
-        raise CompareError(f"{spec}: no bench.json there")
-    report = read_json(path)
+    path, report = read_bench_file(path_text, spec)
     methods = report.get("methods")
     if not isinstance(methods, dict) or not methods:
         raise CompareError(f"{path}: not a bench.json with methods")

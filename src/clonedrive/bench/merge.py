@@ -34,15 +34,11 @@ class MergeError(ValueError):
 def load_bench_run(spec: str) -> dict:
     """A finished bench run's bench.json (``spec``: its folder or the file, or ``LABEL=`` and
     either: every model of the run is then labelled ``LABEL``, one method)."""
-    from clonedrive.base.config import read_json
+    from clonedrive.bench.bench_file import read_bench_file
 
     label, _, path_text = spec.rpartition("=") if not Path(spec).exists() else ("", "", spec)
-    path = Path(path_text)
-    path = path / "bench.json" if path.is_dir() else path
-    if not path.is_file():
-        raise MergeError(f"{spec}: no bench.json there")
-    report = read_json(path)
-    if not isinstance(report, dict) or not isinstance(report.get("models"), dict):
+    path, report = read_bench_file(path_text, spec)
+    if not isinstance(report.get("models"), dict):
         raise MergeError(f"{path}: not a bench.json with models")
     if not report.get("complete"):
         raise MergeError(f"{path}: an unfinished bench run (its \"complete\" is not true)")

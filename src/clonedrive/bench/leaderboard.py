@@ -97,7 +97,8 @@ def plot(report: dict, out: Path) -> list[Path]:
     for figure, name, ylabel in (("success_pct", "bench_success.png", "clean-lap success %"),
                                  ("lap_time_ratio", "bench_lap_time.png",
                                   "lap time / expert's (clean laps)")):
-        fig, ax = plt.subplots(figsize=(max(6.0, 1.4 * len(splits) + 2), 4.0))
+        per_split = max(1.4, 0.3 * len(series))  # room for every bar's label
+        fig, ax = plt.subplots(figsize=(max(6.0, per_split * len(splits) + 2), 4.0))
         width = 0.8 / max(1, len(series))
         x = np.arange(len(splits))
         for i, (legend, figures) in enumerate(series.items()):
@@ -105,10 +106,14 @@ def plot(report: dict, out: Path) -> list[Path]:
             spreads = [figures.get(s, {}).get(figure, (None, None))[1] for s in splits]
             heights = [np.nan if v is None else v for v in values]
             errors = [0.0 if e is None else e for e in spreads]
-            bars = ax.bar(x + (i - (len(series) - 1) / 2) * width, heights, width, label=legend,
+            where = x + (i - (len(series) - 1) / 2) * width
+            bars = ax.bar(where, heights, width, label=legend,
                           yerr=errors if any(errors) else None, capsize=2)
-            ax.bar_label(bars, labels=["-" if v is None else f"{v:.0f}" if figure == "success_pct"
+            ax.bar_label(bars, labels=["" if v is None else f"{v:.0f}" if figure == "success_pct"
                                        else f"{v:.2f}" for v in values], fontsize=7)
+            for position, value in zip(where, values, strict=True):
+                if value is None:  # no bar to label: say there is no figure (no clean lap)
+                    ax.text(position, 0.0, "-", ha="center", va="bottom", fontsize=7)
         ax.set_xticks(x, splits, rotation=20, ha="right")
         ax.set_ylabel(ylabel)
         if figure == "success_pct":

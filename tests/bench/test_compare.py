@@ -108,3 +108,58 @@ def test_compare_finds_a_real_difference_and_none_between_seeds_of_one_recipe(
     listed.write_text("[1, 2]", encoding="utf-8")
     assert main(["bench", "compare", str(good), str(listed)]) == 2
     assert "not a bench.json (its top level is not an object)" in capsys.readouterr().err
+
+
+def test_the_label_permutation_p_value_is_exact_for_few_models() -> None:
+    # Three against three, wholly apart: 2 of the 20 splits are as extreme (this one and its
+    # mirror), the least p-value three against three can give.
+    p_value, smallest = stats.label_permutation_p(np.array([1.0, 2.0, 3.0]),
+                                                  np.array([4.0, 5.0, 6.0]))
+    assert (p_value, smallest) == (0.1, 0.1)
+    mixed, _ = stats.label_permutation_p(np.array([1.0, 5.0, 3.0]), np.array([2.0, 4.0, 6.0]))
+    assert mixed > 0.5
+    apart, floor = stats.label_permutation_p(np.arange(5.0), np.arange(5.0) + 10.0)
+    assert apart == floor == round(2 / 252, 4)
+
+
+def test_a_difference_over_seeds_needs_enough_seeds_to_be_detected() -> None:
+    """Seeds of A all a little better than seeds of B, each seed's episodes noisy: three
+    against three cannot reach p < 0.05 (and says so); six against six can."""
+    rng = np.random.default_rng(8)
+    episodes = [f"s/{i:03d}" for i in range(40)]
+
+    def models(mean: float, count: int) -> list[dict[str, float]]:
+        return [dict(zip(episodes, rng.normal(mean + rng.normal(0, 0.02), 0.1, 40),
+                         strict=True)) for _ in range(count)]
+
+    few = stats.seed_comparison(models(0.8, 3), models(0.7, 3), figure="driving score",
+                                names=("a", "b"))
+    assert few["models"] == [3, 3] and few["episodes"] == 40
+    assert few["low"] < few["difference"] < few["high"] and few["difference"] > 0
+    assert few["p_value"] == few["smallest_p"] == 0.1 and few["a_beats_b_share"] == 1.0
+    assert "cannot give a p-value below 0.1000" in few["sentence"]
+    assert few["sentence"].startswith("Over training seeds, no difference detected")
+    many = stats.seed_comparison(models(0.8, 6), models(0.7, 6), figure="driving score",
+                                 names=("a", "b"))
+    assert many["p_value"] < 0.05 and many["low"] > 0
+    assert many["sentence"].startswith("Over training seeds too, a is better in driving score")
+    lower = stats.seed_comparison(models(0.8, 6), models(0.7, 6), figure="interventions",
+                                  higher_is_better=False, names=("a", "b"))
+    assert "b is better" in lower["sentence"] and lower["a_beats_b_share"] == 0.0
+
+
+def test_compare_adds_the_comparison_over_seeds_for_methods_of_several_models(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    rng = np.random.default_rng(9)
+    good = _bench_json(tmp_path / "good", "best",
+                       [np.clip(rng.normal(0.9, 0.05, 20), 0, 1).tolist() for _ in range(3)])
+    bad = _bench_json(tmp_path / "bad", "plain",
+                      [np.clip(rng.normal(0.6, 0.05, 20), 0, 1).tolist() for _ in range(3)])
+    assert main(["bench", "compare", str(good), str(bad), "--json"]) == 0
+    seeds = json.loads(capsys.readouterr().out)["over_seeds"][0]
+    assert seeds["figure"] == "driving score" and seeds["models"] == [3, 3]
+    assert seeds["p_value"] == 0.1 and len(seeds["a_model_means"]) == 3
+    assert main(["bench", "compare", f"{good}:best=0", f"{bad}:plain=0", "--json"]) == 0
+    assert "over_seeds" not in json.loads(capsys.readouterr().out)  # one model each
+    assert main(["bench", "compare", str(good), str(bad)]) == 0
+    assert "driving score over seeds (3 against 3 models)" in capsys.readouterr().out

@@ -28,8 +28,8 @@ class CompareError(ValueError):
     """A bench run or method that cannot be compared; the message says which and why."""
 
 
-def load_method(spec: str) -> tuple[str, dict, list[dict]]:
-    """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of every model of the method)."""
+def load_method(spec: str) -> tuple[str, dict, list[list[dict]]]:
+    """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of each model of the method)."""
     from clonedrive.bench.bench_file import read_bench_file
 
     path_text, _, label = spec.rpartition(":") if not Path(spec).exists() else (spec, "", "")
@@ -50,8 +50,8 @@ def load_method(spec: str) -> tuple[str, dict, list[dict]]:
         models = [report["models"][label]]
     else:
         raise CompareError(f"{path}: no method {label!r} (it has {', '.join(sorted(methods))})")
-    runs = [run for model in models for run in model.get("runs", [])]
-    return f"{label} ({path.parent.name})", report.get("suite", {}), runs
+    return (f"{label} ({path.parent.name})", report.get("suite", {}),
+            [list(model.get("runs", [])) for model in models])
 
 
 def per_episode(runs: list[dict], value: Callable[[dict], float | None]) -> dict[str, float]:
@@ -67,15 +67,24 @@ def per_episode(runs: list[dict], value: Callable[[dict], float | None]) -> dict
 
 def compare(spec_a: str, spec_b: str, *, seed: int = 0) -> dict:
     """Every figure of :data:`FIGURES` compared between the methods ``spec_a`` and ``spec_b``."""
-    from clonedrive.bench.stats import paired_comparison
+    from clonedrive.bench.stats import paired_comparison, seed_comparison
 
-    name_a, suite_a, runs_a = load_method(spec_a)
-    name_b, suite_b, runs_b = load_method(spec_b)
+    name_a, suite_a, models_a = load_method(spec_a)
+    name_b, suite_b, models_b = load_method(spec_b)
     if suite_a.get("id") != suite_b.get("id"):
         raise CompareError(f"different suites ({suite_a.get('id')} and {suite_b.get('id')}): "
                            "their episodes do not pair")
+    runs_a = [run for runs in models_a for run in runs]
+    runs_b = [run for runs in models_b for run in runs]
+    names = (name_a, name_b)
     results = [paired_comparison(per_episode(runs_a, value), per_episode(runs_b, value),
-                                 figure=figure, higher_is_better=higher, names=(name_a, name_b),
-                                 seed=seed)
+                                 figure=figure, higher_is_better=higher, names=names, seed=seed)
                for figure, value, higher in FIGURES]
-    return {"a": name_a, "b": name_b, "suite": suite_a.get("id"), "comparisons": results}
+    result = {"a": name_a, "b": name_b, "suite": suite_a.get("id"), "comparisons": results}
+    if max(len(models_a), len(models_b)) > 1:  # a recipe's seeds: does the difference hold?
+        result["over_seeds"] = [
+            seed_comparison([per_episode(runs, value) for runs in models_a],
+                            [per_episode(runs, value) for runs in models_b], figure=figure,
+                            higher_is_better=higher, names=names, seed=seed)
+            for figure, value, higher in FIGURES]
+    return result

@@ -110,6 +110,99 @@ def paired_comparison(a: Mapping[str, float], b: Mapping[str, float], *, figure:
                                 higher_is_better)}
 
 
+def seed_comparison(a_models: Sequence[Mapping[str, float]],
+                    b_models: Sequence[Mapping[str, float]], *, figure: str,
+                    higher_is_better: bool = True, names: tuple[str, str] = ("A", "B"),
+                    resamples: int = RESAMPLES, seed: int = DEFAULT_SEED) -> dict:
+    """Two methods compared over their training seeds as well as their episodes (each of
+    ``a_models``, ``b_models``: one model's episode key -> value), on the episodes every model
+    drove. The difference of the methods' means has an interval from resampling each method's
+    models and the shared episodes (paired); the p-value is an exact permutation test of the
+    models' labels on their means, which is what generalises to another training seed; and
+    ``seeds_needed`` is how many seeds per method a difference of the observed size would
+    need (two-sample normal approximation on the models' means)."""
+    keys = sorted(set.intersection(*[{k for k, v in model.items() if v is not None}
+                                     for model in [*a_models, *b_models]]))
+    base = {"figure": figure, "models": [len(a_models), len(b_models)], "episodes": len(keys)}
+    if len(keys) < 2 or min(len(a_models), len(b_models)) < 1:
+        return {**base, "difference": None, "sentence": f"too few shared episodes "
+                                                        f"({len(keys)}) to compare {figure}"}
+    a = np.array([[model[key] for key in keys] for model in a_models], dtype=float)
+    b = np.array([[model[key] for key in keys] for model in b_models], dtype=float)
+    rng = np.random.default_rng(seed)
+    spread = np.empty(resamples)
+    for draw in range(resamples):
+        episodes = rng.integers(0, len(keys), len(keys))
+        spread[draw] = (a[rng.integers(0, len(a), len(a))][:, episodes].mean()
+                        - b[rng.integers(0, len(b), len(b))][:, episodes].mean())
+    interval = _interval(float(a.mean() - b.mean()), spread, len(keys))
+    means_a, means_b = a.mean(axis=1), b.mean(axis=1)
+    p_value, smallest = label_permutation_p(means_a, means_b, seed=seed)
+    sign = 1.0 if higher_is_better else -1.0
+    wins = float(np.mean([sign * (x - y) > 0 for x in means_a for y in means_b]))
+    needed = seeds_needed(means_a, means_b)
+    return {**base, "difference": interval["value"], "low": interval["low"],
+            "high": interval["high"], "p_value": p_value, "smallest_p": smallest,
+            "a_model_means": [round(float(x), 4) for x in means_a],
+            "b_model_means": [round(float(y), 4) for y in means_b],
+            "a_beats_b_share": round(wins, 4), "seeds_needed": needed,
+            "sentence": seed_verdict(figure, interval, p_value, smallest, needed, names,
+                                     higher_is_better, (len(a), len(b)))}
+
+
+def label_permutation_p(a: np.ndarray, b: np.ndarray, *, resamples: int = 20000,
+                        seed: int = DEFAULT_SEED) -> tuple[float, float]:
+    """(two-sided p-value, the smallest p-value these group sizes can give) of the difference
+    of means between groups ``a`` and ``b`` under exchangeable labels: exact over every
+    assignment when there are at most ``resamples`` of them, else from random ones."""
+    from itertools import combinations
+
+    pooled = np.concatenate([a, b])
+    observed = abs(float(a.mean() - b.mean()))
+    total = math.comb(pooled.size, a.size)
+    if total <= resamples:
+        groups = np.array(list(combinations(range(pooled.size), a.size)))
+    else:
+        rng = np.random.default_rng(seed)
+        groups = np.array([rng.permutation(pooled.size)[:a.size] for _ in range(resamples)])
+    inside = np.zeros((len(groups), pooled.size), dtype=bool)
+    np.put_along_axis(inside, groups, True, axis=1)
+    diffs = np.abs(np.where(inside, pooled, 0.0).sum(axis=1) / a.size
+                   - np.where(inside, 0.0, pooled).sum(axis=1) / b.size)
+    p_value = float(np.mean(diffs >= observed - 1e-12))
+    smallest = float(np.mean(diffs >= diffs.max() - 1e-12))
+    return round(p_value, 4), round(smallest, 4)
+
+
+def seeds_needed(a: np.ndarray, b: np.ndarray) -> int | None:
+    """Seeds per method that detect a difference of means of the observed size at
+    :data:`ALPHA` with :data:`POWER`, from the models' means (None when either method has one
+    model, or the difference is 0)."""
+    from statistics import NormalDist
+
+    if a.size < 2 or b.size < 2 or a.mean() == b.mean():
+        return None
+    spread = math.sqrt((a.var(ddof=1) + b.var(ddof=1)) / 2.0)
+    z = NormalDist().inv_cdf(1.0 - ALPHA / 2.0) + NormalDist().inv_cdf(POWER)
+    return max(2, math.ceil(2.0 * (z * spread / abs(float(a.mean() - b.mean()))) ** 2))
+
+
+def seed_verdict(figure: str, interval: dict, p_value: float, smallest: float,
+                 needed: int | None, names: tuple[str, str], higher_is_better: bool,
+                 counts: tuple[int, int]) -> str:
+    """One plain sentence on a comparison over seeds."""
+    sizes = f"{counts[0]} against {counts[1]} models"
+    if p_value < ALPHA:
+        better = names[0] if (interval["value"] > 0) == higher_is_better else names[1]
+        return (f"Over training seeds too, {better} is better in {figure} "
+                f"(p = {p_value:.4f}, {sizes}).")
+    floor = (f"; {sizes} cannot give a p-value below {smallest:.4f}" if smallest >= ALPHA
+             else "")
+    need = f"; about {needed} seeds per method would be needed" if needed else ""
+    return (f"Over training seeds, no difference detected in {figure} "
+            f"(p = {p_value:.4f}{floor}{need}).")
+
+
 def sign_flip_p_value(diffs: np.ndarray, *, resamples: int = RESAMPLES,
                       seed: int = DEFAULT_SEED) -> float:
     """Two-sided p-value of a mean paired difference under "no difference" (each episode's

@@ -174,4 +174,12 @@ def _compare(args) -> int:
             print(f"  {item['figure']}: A - B = {item['difference']:+.4g} "
                   f"[{item['low']:+.4g}, {item['high']:+.4g}] over {item['episodes']} episodes")
         print(f"    {item['sentence']}")
+    for item in result.get("over_seeds", []):
+        if item["difference"] is not None:
+            a_count, b_count = item["models"]
+            print(f"  {item['figure']} over seeds ({a_count} against {b_count} models): "
+                  f"A - B = {item['difference']:+.4g} [{item['low']:+.4g}, "
+                  f"{item['high']:+.4g}]; models' means A {item['a_model_means']}, "
+                  f"B {item['b_model_means']}")
+        print(f"    {item['sentence']}")
     return 0

@@ -29,7 +29,8 @@ DESCRIPTION = (
     "compares two bench runs (a folder or bench.json; PATH:LABEL for one method of it, "
     "PATH:LABEL=MODEL for one model) on the "
     "episodes both drove: the difference in each figure with its interval, a permutation-test "
-    "p-value, and a sentence saying whether A or B is better. `clonedrive bench merge RUN... "
+    "p-value, and a sentence saying whether A or B is better; for methods of several models, "
+    "the same over training seeds too. `clonedrive bench merge RUN... "
     "--out DIR` merges bench runs of one suite made apart (a split or a model at a time) into "
     "one bench.json and leaderboard (--compact keeps only each run's figures)."
 )

@@ -30,7 +30,7 @@ def board():
 
 def test_every_rows_commands_parse_and_follow_the_rows_they_need(board, capsys) -> None:
     table, rows = board.load_rows()
-    assert {"best", "writeup", "center", "center-dagger", "center-plain", "pilotnet",
+    assert {"best", "writeup", "center", "center-dagger", "center-plain", "center-dart", "pilotnet",
             "seed-network", "ensemble"} <= set(rows)
     parser = build_parser()
     for name, row in rows.items():

@@ -29,6 +29,8 @@ CONFIDENCE = 0.95
 ALPHA = 0.05
 #: Power the "episodes needed" estimate is for.
 POWER = 0.8
+#: Most label assignments a permutation test over models enumerates exactly (beyond: drawn).
+EXACT_ASSIGNMENTS = 20000
 #: Seed of the generator when the caller gives none.
 DEFAULT_SEED = 0
 
@@ -150,7 +152,7 @@ def seed_comparison(a_models: Sequence[Mapping[str, float]],
                                      higher_is_better, (len(a), len(b)))}
 
 
-def label_permutation_p(a: np.ndarray, b: np.ndarray, *, resamples: int = 20000,
+def label_permutation_p(a: np.ndarray, b: np.ndarray, *, resamples: int = EXACT_ASSIGNMENTS,
                         seed: int = DEFAULT_SEED) -> tuple[float, float]:
     """(two-sided p-value, the smallest p-value these group sizes can give) of the difference
     of means between groups ``a`` and ``b`` under exchangeable labels: exact over every
@@ -167,8 +169,8 @@ def label_permutation_p(a: np.ndarray, b: np.ndarray, *, resamples: int = 20000,
         groups = np.array([rng.permutation(pooled.size)[:a.size] for _ in range(resamples)])
     inside = np.zeros((len(groups), pooled.size), dtype=bool)
     np.put_along_axis(inside, groups, True, axis=1)
-    diffs = np.abs(np.where(inside, pooled, 0.0).sum(axis=1) / a.size
-                   - np.where(inside, 0.0, pooled).sum(axis=1) / b.size)
+    in_a = (inside * pooled).sum(axis=1)
+    diffs = np.abs(in_a / a.size - (pooled.sum() - in_a) / b.size)
     p_value = float(np.mean(diffs >= observed - 1e-12))
     smallest = float(np.mean(diffs >= diffs.max() - 1e-12))
     return round(p_value, 4), round(smallest, 4)
@@ -178,12 +180,10 @@ def seeds_needed(a: np.ndarray, b: np.ndarray) -> int | None:
     """Seeds per method that detect a difference of means of the observed size at
     :data:`ALPHA` with :data:`POWER`, from the models' means (None when either method has one
     model, or the difference is 0)."""
-    from statistics import NormalDist
-
     if a.size < 2 or b.size < 2 or a.mean() == b.mean():
         return None
     spread = math.sqrt((a.var(ddof=1) + b.var(ddof=1)) / 2.0)
-    z = NormalDist().inv_cdf(1.0 - ALPHA / 2.0) + NormalDist().inv_cdf(POWER)
+    z = _detection_z()
     return max(2, math.ceil(2.0 * (z * spread / abs(float(a.mean() - b.mean()))) ** 2))
 
 
@@ -218,13 +218,19 @@ def sign_flip_p_value(diffs: np.ndarray, *, resamples: int = RESAMPLES,
 def episodes_needed(diffs: np.ndarray) -> int | None:
     """Episodes a paired comparison needs to detect a mean difference of the observed size at
     :data:`ALPHA` with :data:`POWER` (normal approximation; None when the difference is 0)."""
-    from statistics import NormalDist
-
     mean, spread = float(diffs.mean()), float(diffs.std(ddof=1))
     if mean == 0.0:
         return None
-    z = NormalDist().inv_cdf(1.0 - ALPHA / 2.0) + NormalDist().inv_cdf(POWER)
+    z = _detection_z()
     return max(2, math.ceil((z * spread / abs(mean)) ** 2))
+
+
+def _detection_z() -> float:
+    """The normal quantiles a two-sided test at :data:`ALPHA` with :data:`POWER` needs between
+    the observed difference and its standard error."""
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf(1.0 - ALPHA / 2.0) + NormalDist().inv_cdf(POWER)
 
 
 def verdict(figure: str, mean_diff: float, p_value: float, needed: int | None,

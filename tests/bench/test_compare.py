@@ -122,6 +122,21 @@ def test_the_label_permutation_p_value_is_exact_for_few_models() -> None:
     assert apart == floor == round(2 / 252, 4)
 
 
+def test_the_drawn_label_permutation_p_value_counts_the_observed_assignment() -> None:
+    # 12 against 12 has 2.7 million assignments: drawn, not enumerated. Wholly apart, no draw
+    # is more extreme, yet the p-value is the floor 1 / (draws + 1), never 0.
+    p_value, smallest = stats.label_permutation_p(np.arange(12.0), np.arange(12.0) + 50.0,
+                                                  draws=999)
+    assert (p_value, smallest) == (0.001, 0.001)
+    mixed, _ = stats.label_permutation_p(np.arange(12.0), np.arange(12.0) + 0.5, draws=999)
+    assert 0.5 < mixed <= 1.0
+    # Five against five drawn (99 draws) instead of enumerated: a multiple of 1/100 near the
+    # exact 2/252, not the exact value itself.
+    drawn, floor = stats.label_permutation_p(np.arange(5.0), np.arange(5.0) + 10.0,
+                                             exact_limit=1, draws=99)
+    assert floor == 0.01 and drawn in (0.01, 0.02, 0.03, 0.04)
+
+
 def test_a_difference_over_seeds_needs_enough_seeds_to_be_detected() -> None:
     """Seeds of A all a little better than seeds of B, each seed's episodes noisy: three
     against three cannot reach p < 0.05 (and says so); six against six can."""

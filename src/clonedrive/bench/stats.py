@@ -152,28 +152,40 @@ def seed_comparison(a_models: Sequence[Mapping[str, float]],
                                      higher_is_better, (len(a), len(b)))}
 
 
-def label_permutation_p(a: np.ndarray, b: np.ndarray, *, resamples: int = EXACT_ASSIGNMENTS,
-                        seed: int = DEFAULT_SEED) -> tuple[float, float]:
+def label_permutation_p(a: np.ndarray, b: np.ndarray, *, exact_limit: int = EXACT_ASSIGNMENTS,
+                        draws: int = RESAMPLES, seed: int = DEFAULT_SEED) -> tuple[float, float]:
     """(two-sided p-value, the smallest p-value these group sizes can give) of the difference
     of means between groups ``a`` and ``b`` under exchangeable labels: exact over every
-    assignment when there are at most ``resamples`` of them, else from random ones."""
-    from itertools import combinations
-
+    assignment when there are at most ``exact_limit`` of them, else from ``draws`` random
+    ones with the observed assignment counted (so never 0)."""
     pooled = np.concatenate([a, b])
     observed = abs(float(a.mean() - b.mean()))
-    total = math.comb(pooled.size, a.size)
-    if total <= resamples:
-        groups = np.array(list(combinations(range(pooled.size), a.size)))
+    exact = math.comb(pooled.size, a.size) <= exact_limit
+    diffs = _assignment_differences(pooled, a.size, None if exact else draws, seed)
+    extreme = int(np.count_nonzero(diffs >= observed - 1e-12))
+    if exact:
+        p_value = extreme / diffs.size
+        smallest = float(np.mean(diffs >= diffs.max() - 1e-12))
+    else:
+        p_value, smallest = (extreme + 1) / (draws + 1), 1.0 / (draws + 1)
+    return round(p_value, 4), round(smallest, 4)
+
+
+def _assignment_differences(pooled: np.ndarray, size_a: int, draws: int | None,
+                            seed: int) -> np.ndarray:
+    """|mean of group A - mean of the rest| for every way to pick ``size_a`` of ``pooled`` as
+    group A (``draws`` None), or for ``draws`` random picks."""
+    from itertools import combinations
+
+    if draws is None:
+        groups = np.array(list(combinations(range(pooled.size), size_a)))
     else:
         rng = np.random.default_rng(seed)
-        groups = np.array([rng.permutation(pooled.size)[:a.size] for _ in range(resamples)])
+        groups = np.array([rng.permutation(pooled.size)[:size_a] for _ in range(draws)])
     inside = np.zeros((len(groups), pooled.size), dtype=bool)
     np.put_along_axis(inside, groups, True, axis=1)
     in_a = (inside * pooled).sum(axis=1)
-    diffs = np.abs(in_a / a.size - (pooled.sum() - in_a) / b.size)
-    p_value = float(np.mean(diffs >= observed - 1e-12))
-    smallest = float(np.mean(diffs >= diffs.max() - 1e-12))
-    return round(p_value, 4), round(smallest, 4)
+    return np.abs(in_a / size_a - (pooled.sum() - in_a) / (pooled.size - size_a))
 
 
 def seeds_needed(a: np.ndarray, b: np.ndarray) -> int | None:

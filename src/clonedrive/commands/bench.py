@@ -171,16 +171,19 @@ def _compare(args) -> int:
         return 0
     print(f"A = {result['a']}, B = {result['b']}, suite {result['suite']}")
     for item in result["comparisons"]:
-        if item["difference"] is not None:
-            print(f"  {item['figure']}: A - B = {item['difference']:+.4g} "
-                  f"[{item['low']:+.4g}, {item['high']:+.4g}] over {item['episodes']} episodes")
-        print(f"    {item['sentence']}")
+        _print_comparison(item, f"over {item['episodes']} episodes", "")
     for item in result.get("over_seeds", []):
-        if item["difference"] is not None:
-            a_count, b_count = item["models"]
-            print(f"  {item['figure']} over seeds ({a_count} against {b_count} models): "
-                  f"A - B = {item['difference']:+.4g} [{item['low']:+.4g}, "
-                  f"{item['high']:+.4g}]; models' means A {item['a_model_means']}, "
-                  f"B {item['b_model_means']}")
-        print(f"    {item['sentence']}")
+        models = "{} against {} models".format(*item["models"])
+        means = (f"; models' means A {item.get('a_model_means')}, "
+                 f"B {item.get('b_model_means')}")
+        _print_comparison(item, f"over seeds ({models})", means)
     return 0
+
+
+def _print_comparison(item: dict, scope: str, extra: str) -> None:
+    """One figure's comparison: the difference with its interval (when there is one), then the
+    sentence."""
+    if item["difference"] is not None:
+        print(f"  {item['figure']} {scope}: A - B = {item['difference']:+.4g} "
+              f"[{item['low']:+.4g}, {item['high']:+.4g}]{extra}")
+    print(f"    {item['sentence']}")

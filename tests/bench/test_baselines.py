@@ -30,8 +30,8 @@ def board():
 
 def test_every_rows_commands_parse_and_follow_the_rows_they_need(board, capsys) -> None:
     table, rows = board.load_rows()
-    assert {"best", "writeup", "center", "center-dagger", "center-plain", "center-dart", "pilotnet",
-            "seed-network", "ensemble"} <= set(rows)
+    assert {"best", "writeup", "best-dagger", "center", "center-dagger", "center-plain",
+            "center-dart", "pilotnet", "seed-network", "ensemble"} <= set(rows)
     parser = build_parser()
     for name, row in rows.items():
         steps = (board.row_steps(table, rows, name, 1, "runs/lb")

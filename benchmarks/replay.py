@@ -14,18 +14,22 @@
    every model and ``--sim-condition TRACK@MPH`` (a lap recorded with all three cameras, then
    replayed; the same track and speed driven by ``clonedrive evaluate``); the same for the
    replay's mean |offset| against the true mean |cross-track error|
-   (``sim_rank_correlation_offset``), and the mean |difference| in interventions per km.
+   (``sim_rank_correlation_offset``), and the mean |difference| in interventions per km. Over
+   models as well (``sim_rank_correlation_models``, ``..._models_autonomy``): each model's
+   interventions, distance and time summed over the conditions, ranked by interventions per
+   km and by PilotNet's autonomy, in replay against true closed loop.
 
 Run: python benchmarks/replay.py [--rows 200] [--model best=runs/demo/train/model.keras]
      [--replay-log DIR ...] [--sim-model LABEL=PATH ... --sim-condition lake@15 ...
-     --sim-max-offset default|road] [--trust-model]
+     --sim-max-offset default|road --sim-vehicle-model kinematic|dynamic] [--trust-model]
 Ends with one JSON line: {"side_view_error_ratio", "side_view_error_synthesised",
 "side_view_error_unshifted", "side_view_error_ratio_unsmoothed",
 "side_view_error_ratio_default_rig", "rows_compared", "rows_better", "fitted_left_x_m",
 "fitted_right_x_m", "fitted_horizon_row", "replay": {label: {log: {autonomy_pct,
 interventions, interventions_per_km, distance_m, mean_abs_offset_m, jitter_per_s}}},
 and with --sim-model "sim_rank_correlation", "sim_rank_correlation_offset",
-"sim_interventions_per_km_mean_abs_difference", "sim_pairs"}.
+"sim_interventions_per_km_mean_abs_difference", "sim_rank_correlation_models",
+"sim_rank_correlation_models_autonomy", "sim_vehicle_model", "sim_models", "sim_pairs"}.
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 THREE_CAMERA_LOG = REALDATA / "lake_rikki_3cam"
 REPLAY_LOGS = (REALDATA / "lake_rikki_center", REALDATA / "mountain_tuong_center")
 ZERO_LABEL = "always_zero"  #: the baseline's label in the replay figures
+TOTAL_KEYS = ("interventions", "distance_m", "elapsed_s")  #: summed per model over conditions
 REPLAY_KEYS = ("autonomy_pct", "interventions", "interventions_per_km", "distance_m",
                "mean_abs_offset_m", "jitter_per_s")
 
@@ -140,13 +145,14 @@ def road_offset_m(track_name: str) -> float:
 
 
 def sim_comparison(models: list[str], conditions: list[str], trust: bool,
-                   max_offset: str = "default") -> dict:
+                   max_offset: str = "default", vehicle_model: str = "kinematic") -> dict:
     """Each model replayed on a clonedrive-recorded lap (three cameras) and driven in true closed
     loop on the same track at the same speed: rank correlations between the two over all
     (model, condition) pairs, and the mean |difference| of interventions per km.
     ``max_offset``: ``default`` (the replay's 1 m from the expert's path) or ``road`` (where a
-    tyre would leave the track's narrowest stretch, the true loop's intervention)."""
-    from scipy.stats import spearmanr
+    tyre would leave the track's narrowest stretch, the true loop's intervention). Also over
+    models: each model's interventions and elapsed time summed over the conditions, ranked by
+    interventions per km and by autonomy."""
 
     from clonedrive.drivers.policy import load_policy
     from clonedrive.replay.episode import ReplayConfig
@@ -158,8 +164,9 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool,
             track, _, speed = condition.partition("@")
             lap = Path(scratch) / f"{track}_{speed}"
             _cli("record", "--track", track, "--laps", "1", "--speed", speed, "--out", str(lap))
-            config = (ReplayConfig(max_offset_m=road_offset_m(track)) if max_offset == "road"
-                      else ReplayConfig())
+            config = ReplayConfig(
+                max_offset_m=road_offset_m(track) if max_offset == "road" else 1.0,
+                vehicle_model=vehicle_model)
             for entry in models:
                 label, _, path = entry.partition("=")
                 report = replay(load_policy(path, trust=trust), [lap],
@@ -175,21 +182,55 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool,
                               "replay_interventions_per_km": report["interventions_per_km"],
                               "sim_interventions_per_km": round(true_per_km, 3),
                               "replay_mean_abs_offset_m": report["mean_abs_offset_m"],
-                              "sim_mean_abs_cte_m": run["mean_abs_cte_m"]})
+                              "sim_mean_abs_cte_m": run["mean_abs_cte_m"],
+                              **{f"replay_{key}": report[key] for key in TOTAL_KEYS},
+                              **{f"sim_{key}": run[key] for key in TOTAL_KEYS}})
                 print(pairs[-1])
-
-    def rank(first: str, second: str) -> float:
-        value = spearmanr([pair[first] for pair in pairs], [pair[second] for pair in pairs])[0]
-        return round(float(value), 4)
-
+    per_model = model_totals(pairs)
     return {
-        "sim_rank_correlation": rank("replay_interventions_per_km", "sim_interventions_per_km"),
-        "sim_rank_correlation_offset": rank("replay_mean_abs_offset_m", "sim_mean_abs_cte_m"),
+        "sim_rank_correlation": rank(pairs, "replay_interventions_per_km",
+                                     "sim_interventions_per_km"),
+        "sim_rank_correlation_offset": rank(pairs, "replay_mean_abs_offset_m",
+                                            "sim_mean_abs_cte_m"),
         "sim_interventions_per_km_mean_abs_difference": round(float(np.mean(
             [abs(pair["replay_interventions_per_km"] - pair["sim_interventions_per_km"])
              for pair in pairs])), 3),
+        "sim_rank_correlation_models": rank(per_model, "replay_interventions_per_km",
+                                            "sim_interventions_per_km"),
+        "sim_rank_correlation_models_autonomy": rank(per_model, "replay_autonomy_pct",
+                                                     "sim_autonomy_pct"),
+        "sim_vehicle_model": vehicle_model,
+        "sim_models": per_model,
         "sim_pairs": pairs,
     }
+
+
+def rank(rows: list[dict], first: str, second: str) -> float:
+    """Spearman's rank correlation of two keys over ``rows``."""
+    from scipy.stats import spearmanr
+
+    value = spearmanr([row[first] for row in rows], [row[second] for row in rows])[0]
+    return round(float(value), 4)
+
+
+def model_totals(pairs: list[dict]) -> list[dict]:
+    """Per model, over its conditions: interventions per km and PilotNet's autonomy (6 s per
+    intervention, floored at 0) from the summed interventions, distance and time, in replay
+    and in true closed loop."""
+    from clonedrive.replay.episode import ReplayConfig, autonomy
+
+    penalty_s = ReplayConfig().intervention_penalty_s
+    rows = []
+    for label in dict.fromkeys(pair["model"] for pair in pairs):
+        mine = [pair for pair in pairs if pair["model"] == label]
+        row = {"model": label, "conditions": len(mine)}
+        for side in ("replay", "sim"):
+            count, metres, seconds = (sum(pair[f"{side}_{key}"] for pair in mine)
+                                      for key in TOTAL_KEYS)
+            row[f"{side}_interventions_per_km"] = round(count / (metres / 1000.0), 3)
+            row[f"{side}_autonomy_pct"] = autonomy(count, seconds, penalty_s)
+        rows.append(row)
+    return rows
 
 
 def _cli(*arguments: str) -> str:
@@ -215,6 +256,9 @@ def main() -> None:
     parser.add_argument("--sim-max-offset", choices=("default", "road"), default="default",
                         help="the replay's intervention in the sim comparison: 1 m from the "
                              "expert's path (default), or where a tyre leaves the road (road)")
+    parser.add_argument("--sim-vehicle-model", choices=("kinematic", "dynamic"),
+                        default="kinematic",
+                        help="the replay's vehicle model in the sim comparison")
     parser.add_argument("--trust-model", action="store_true")
     args = parser.parse_args()
 
@@ -234,7 +278,8 @@ def main() -> None:
     result["replay"] = replay_figures(args.model, logs, args.trust_model) if args.model else {}
     if args.sim_model:
         result.update(sim_comparison(args.sim_model, args.sim_condition or ["lake@15"],
-                                     args.trust_model, args.sim_max_offset))
+                                     args.trust_model, args.sim_max_offset,
+                                     args.sim_vehicle_model))
     print(json.dumps(result))
 
 

@@ -166,6 +166,13 @@ def test_the_command(tmp_path: Path, tiny_model_path: Path, capsys) -> None:
     assert report["totals"]["frames"] == 70 and (out / "replay.png").stat().st_size > 1000
     assert report["files"]["video"] == "replay.mp4" and (out / "replay.mp4").stat().st_size > 0
     assert "autonomy" in capsys.readouterr().out
+    assert report["config"]["vehicle_model"] == "kinematic"
+    assert main(["replay", str(tiny_model_path), str(MOUNTAIN), "--out", str(tmp_path / "dyn"),
+                 "--vehicle-model", "dynamic"]) == 0
+    dynamic = json.loads((tmp_path / "dyn" / "replay.json").read_text())
+    assert dynamic["config"]["vehicle_model"] == "dynamic"
+    assert dynamic["totals"]["mean_abs_offset_m"] != report["totals"]["mean_abs_offset_m"]
+    capsys.readouterr()
     assert main(["replay", str(tiny_model_path), str(STATIONARY), "--out", str(out)]) == 1
     error = capsys.readouterr().err.strip()
     assert error.startswith("clonedrive replay: ") and "stationary" in error

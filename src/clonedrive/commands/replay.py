@@ -37,6 +37,7 @@ EXAMPLES = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from clonedrive.replay.episode import ReplayConfig
+    from clonedrive.replay.motion import VEHICLE_MODELS
 
     defaults = ReplayConfig()
     parser.add_argument("model", help="model file (.keras, .h5 or .onnx)")
@@ -51,6 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-calibrate", action="store_true",
                         help="use the default side-camera offsets and horizon instead of fitting "
                              "them to a three-camera log")
+    parser.add_argument("--vehicle-model", choices=VEHICLE_MODELS,
+                        default=defaults.vehicle_model,
+                        help="how the car moves off the recorded path: a kinematic bicycle, or "
+                             "the simulator's dynamic single-track model (tyre slip, yaw "
+                             "inertia) (default: %(default)s)")
     parser.add_argument("--video", action="store_true",
                         help="also write replay.mp4: the frames the model saw, with a HUD")
     parser.add_argument("--json", action="store_true", help="print replay.json's content")
@@ -65,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     from clonedrive.replay.output import format_summary
 
     try:
-        config = ReplayConfig(max_offset_m=args.max_offset, calibrate=not args.no_calibrate)
+        config = ReplayConfig(max_offset_m=args.max_offset, calibrate=not args.no_calibrate,
+                              vehicle_model=args.vehicle_model)
     except ValueError as error:
         print(f"clonedrive replay: {error}", file=sys.stderr)
         return 2

@@ -3,10 +3,10 @@
 The car's state is its lateral offset (right = +) and heading error (right = +) from the path the
 human drove. Each frame the model sees the recorded view synthesised for that offset and
 heading (:mod:`clonedrive.replay.view`); its steering then moves the car away from the human's
-path by a kinematic bicycle (the project's wheelbase and maximum wheel angle) at the recorded
-speed: the heading error grows with the difference of the two curvatures, the offset with the
-heading error. Past :attr:`ReplayConfig.max_offset_m` an intervention puts the car back on the
-path. Autonomy = (1 - interventions x penalty / elapsed) x 100, floored at 0.
+path at the recorded speed, by a kinematic bicycle (or the simulator's dynamic vehicle model:
+:mod:`clonedrive.replay.motion`). Past
+:attr:`ReplayConfig.max_offset_m` an intervention puts the car back on the path.
+Autonomy = (1 - interventions x penalty / elapsed) x 100, floored at 0.
 
 A log splits into episodes where consecutive image timestamps are further apart than
 :data:`clonedrive.evaluate.crosscheck.SEGMENT_GAP_S`.
@@ -14,7 +14,6 @@ A log splits into episodes where consecutive image timestamps are further apart 
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -25,8 +24,9 @@ import numpy as np
 
 from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.evaluate.crosscheck import SEGMENT_GAP_S
+from clonedrive.replay.motion import VEHICLE_MODELS, RelativeMotion
 from clonedrive.replay.view import Rig, synthesise
-from clonedrive.world.vehicle import MPH_TO_MPS, VehicleParams
+from clonedrive.world.vehicle import MPH_TO_MPS
 
 SIDE_CAMERAS = ("left", "right")
 
@@ -44,10 +44,14 @@ class ReplayConfig:
     min_episode_frames: int = 30  #: shorter episodes are left out (2 s at 15 Hz)
     min_distance_m: float = 20.0  #: a log whose car covers less is stationary
     calibrate: bool = True  #: fit the side-camera offsets from the log where it has them
+    vehicle_model: str = "kinematic"  #: how the car moves off the path (replay.motion)
 
     def __post_init__(self) -> None:
         if self.max_offset_m <= 0:
             raise ValueError(f"max_offset_m must be positive, got {self.max_offset_m}")
+        if self.vehicle_model not in VEHICLE_MODELS:
+            raise ValueError(f"vehicle_model must be one of {', '.join(VEHICLE_MODELS)}, "
+                             f"got {self.vehicle_model!r}")
         if self.min_episode_frames < 2:
             raise ValueError(f"min_episode_frames must be >= 2, got {self.min_episode_frames}")
 
@@ -131,29 +135,23 @@ def drive_episode(policy: Any, episode: Episode, rig: Rig, config: ReplayConfig,
                   on_frame: Callable[[np.ndarray, Episode], None] | None = None) -> Episode:
     """Drive ``policy`` (``reset()``, ``act(image, speed_mph) -> (steering, throttle)``) through
     the episode, filling its traces; ``on_frame(view, episode)`` sees each synthesised view."""
-    vehicle = VehicleParams()
-    max_wheel = vehicle.max_wheel_angle_rad
-    offset = heading = travelled = 0.0
+    motion = RelativeMotion(config.vehicle_model)
+    travelled = 0.0
     policy.reset()
     steps = np.append(np.diff(episode.times_s), 1.0 / CONTROL_HZ)
     for index, row in enumerate(episode.rows):
-        view = synthesise(frame_images(row), rig, offset, heading)
+        view = synthesise(frame_images(row), rig, motion.offset_m, motion.heading_rad)
         steering = float(np.clip(policy.act(view, row.speed_mph)[0], -1.0, 1.0))
-        episode.offset_m.append(offset)
-        episode.heading_rad.append(heading)
+        episode.offset_m.append(motion.offset_m)
+        episode.heading_rad.append(motion.heading_rad)
         episode.steering.append(steering)
         episode.distance_m.append(travelled)
         if on_frame is not None:
             on_frame(view, episode)
-        step_m = row.speed_mph * MPH_TO_MPS * float(steps[index])
-        turn = step_m / vehicle.wheelbase_m * (
-            math.tan(steering * max_wheel) - math.tan(row.steering * max_wheel))
-        offset += step_m * math.sin(heading + 0.5 * turn)
-        heading += turn
-        travelled += step_m
-        if abs(offset) > config.max_offset_m:
+        travelled += motion.advance(steering, row.steering, row.speed_mph, float(steps[index]))
+        if abs(motion.offset_m) > config.max_offset_m:
             episode.interventions.append(index)
-            offset = heading = 0.0
+            motion.put_back()
     return episode
 
 

@@ -21,11 +21,12 @@ from clonedrive.world.vehicle import MPH_TO_MPS
 SECONDS_PER_INTERVENTION = 6.0
 
 
-def autonomy_pct(interventions: int, elapsed_s: float) -> float:
-    """``(1 - interventions * 6 s / elapsed s) * 100``, floored at 0."""
+def autonomy_pct(interventions: int, elapsed_s: float,
+                 penalty_s: float = SECONDS_PER_INTERVENTION) -> float:
+    """``(1 - interventions * penalty / elapsed s) * 100``, floored at 0 (penalty: 6 s)."""
     if elapsed_s <= 0:
         return 0.0 if interventions else 100.0
-    return max(0.0, (1.0 - interventions * SECONDS_PER_INTERVENTION / elapsed_s) * 100.0)
+    return max(0.0, (1.0 - interventions * penalty_s / elapsed_s) * 100.0)
 
 
 def smoothness(steering: np.ndarray, control_hz: float) -> float:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from clonedrive.base.udacity_spec import CONTROL_HZ
+from clonedrive.episode.trace import SECONDS_PER_INTERVENTION, autonomy_pct
 from clonedrive.evaluate.crosscheck import SEGMENT_GAP_S
 from clonedrive.replay.motion import VEHICLE_MODELS, RelativeMotion
 from clonedrive.replay.view import Rig, synthesise
@@ -40,7 +41,7 @@ class ReplayConfig:
     """How a replay is run and scored."""
 
     max_offset_m: float = 1.0  #: an intervention beyond this offset from the path
-    intervention_penalty_s: float = 6.0  #: time an intervention costs (PilotNet)
+    intervention_penalty_s: float = SECONDS_PER_INTERVENTION  #: an intervention's cost (PilotNet)
     min_episode_frames: int = 30  #: shorter episodes are left out (2 s at 15 Hz)
     min_distance_m: float = 20.0  #: a log whose car covers less is stationary
     calibrate: bool = True  #: fit the side-camera offsets from the log where it has them
@@ -181,7 +182,7 @@ def autonomy(interventions: int, elapsed_s: float, penalty_s: float) -> float | 
     """PilotNet's autonomy [%], floored at 0; None for no elapsed time."""
     if elapsed_s <= 0:
         return None
-    return round(max(0.0, 1.0 - interventions * penalty_s / elapsed_s) * 100.0, 2)
+    return round(autonomy_pct(interventions, elapsed_s, penalty_s), 2)
 
 
 def jitter(steering: np.ndarray, elapsed_s: float) -> float | None:

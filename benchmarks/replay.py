@@ -38,12 +38,14 @@ import argparse
 import json
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from clonedrive.data.driving_log import read_driving_log
 from clonedrive.replay.episode import frame_images
+from clonedrive.replay.motion import VEHICLE_MODELS
 from clonedrive.replay.view import (
     CALIBRATION_FRAMES,
     Rig,
@@ -145,7 +147,7 @@ def road_offset_m(track_name: str) -> float:
 
 
 def sim_comparison(models: list[str], conditions: list[str], trust: bool,
-                   max_offset: str = "default", vehicle_model: str = "kinematic") -> dict:
+                   max_offset: str = "default", vehicle_model: str | None = None) -> dict:
     """Each model replayed on a clonedrive-recorded lap (three cameras) and driven in true closed
     loop on the same track at the same speed: rank correlations between the two over all
     (model, condition) pairs, and the mean |difference| of interventions per km.
@@ -158,15 +160,15 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool,
     from clonedrive.replay.episode import ReplayConfig
     from clonedrive.replay.output import replay
 
+    base = ReplayConfig(**({"vehicle_model": vehicle_model} if vehicle_model else {}))
     pairs = []
     with tempfile.TemporaryDirectory(prefix="replay-sim-") as scratch:
         for condition in conditions:
             track, _, speed = condition.partition("@")
             lap = Path(scratch) / f"{track}_{speed}"
             _cli("record", "--track", track, "--laps", "1", "--speed", speed, "--out", str(lap))
-            config = ReplayConfig(
-                max_offset_m=road_offset_m(track) if max_offset == "road" else 1.0,
-                vehicle_model=vehicle_model)
+            config = (replace(base, max_offset_m=road_offset_m(track)) if max_offset == "road"
+                      else base)
             for entry in models:
                 label, _, path = entry.partition("=")
                 report = replay(load_policy(path, trust=trust), [lap],
@@ -199,7 +201,7 @@ def sim_comparison(models: list[str], conditions: list[str], trust: bool,
                                             "sim_interventions_per_km"),
         "sim_rank_correlation_models_autonomy": rank(per_model, "replay_autonomy_pct",
                                                      "sim_autonomy_pct"),
-        "sim_vehicle_model": vehicle_model,
+        "sim_vehicle_model": base.vehicle_model,
         "sim_models": per_model,
         "sim_pairs": pairs,
     }
@@ -256,9 +258,9 @@ def main() -> None:
     parser.add_argument("--sim-max-offset", choices=("default", "road"), default="default",
                         help="the replay's intervention in the sim comparison: 1 m from the "
                              "expert's path (default), or where a tyre leaves the road (road)")
-    parser.add_argument("--sim-vehicle-model", choices=("kinematic", "dynamic"),
-                        default="kinematic",
-                        help="the replay's vehicle model in the sim comparison")
+    parser.add_argument("--sim-vehicle-model", choices=VEHICLE_MODELS, default=None,
+                        help="the replay's vehicle model in the sim comparison (default: "
+                             "clonedrive replay's)")
     parser.add_argument("--trust-model", action="store_true")
     args = parser.parse_args()
 

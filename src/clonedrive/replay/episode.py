@@ -25,7 +25,7 @@ import numpy as np
 from clonedrive.base.udacity_spec import CONTROL_HZ
 from clonedrive.episode.trace import SECONDS_PER_INTERVENTION, autonomy_pct
 from clonedrive.evaluate.crosscheck import SEGMENT_GAP_S
-from clonedrive.replay.motion import VEHICLE_MODELS, RelativeMotion
+from clonedrive.replay.motion import RelativeMotion, check_vehicle_model
 from clonedrive.replay.view import Rig, synthesise
 from clonedrive.world.vehicle import MPH_TO_MPS
 
@@ -50,9 +50,7 @@ class ReplayConfig:
     def __post_init__(self) -> None:
         if self.max_offset_m <= 0:
             raise ValueError(f"max_offset_m must be positive, got {self.max_offset_m}")
-        if self.vehicle_model not in VEHICLE_MODELS:
-            raise ValueError(f"vehicle_model must be one of {', '.join(VEHICLE_MODELS)}, "
-                             f"got {self.vehicle_model!r}")
+        check_vehicle_model(self.vehicle_model)
         if self.min_episode_frames < 2:
             raise ValueError(f"min_episode_frames must be >= 2, got {self.min_episode_frames}")
 

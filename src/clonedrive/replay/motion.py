@@ -20,12 +20,24 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from clonedrive.world.vehicle import MPH_TO_MPS, Controls, VehicleParams, VehicleState, integrate
+from clonedrive.world.vehicle import (
+    MPH_TO_MPS,
+    PHYSICS_HZ,
+    Controls,
+    VehicleParams,
+    VehicleState,
+    integrate,
+)
 
 #: The vehicle models a replay can use.
 VEHICLE_MODELS = ("kinematic", "dynamic")
-#: Physics sub-steps per second of the dynamic model (the simulator's physics rate).
-PHYSICS_HZ = 150.0
+
+
+def check_vehicle_model(name: str) -> None:
+    """ValueError naming the choices when ``name`` is not one of :data:`VEHICLE_MODELS`."""
+    if name not in VEHICLE_MODELS:
+        raise ValueError(f"vehicle model must be one of {', '.join(VEHICLE_MODELS)}, "
+                         f"got {name!r}")
 
 
 @dataclass
@@ -39,9 +51,7 @@ class RelativeMotion:
     heading_rad: float = 0.0  #: right = +
 
     def __post_init__(self) -> None:
-        if self.model not in VEHICLE_MODELS:
-            raise ValueError(f"vehicle model must be one of {', '.join(VEHICLE_MODELS)}, "
-                             f"got {self.model!r}")
+        check_vehicle_model(self.model)
         self._replayed = (0.0, 0.0)  # (lateral speed m/s, yaw rate rad/s), vehicle frame
         self._recorded = (0.0, 0.0)
 

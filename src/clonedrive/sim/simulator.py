@@ -29,6 +29,7 @@ from clonedrive.world.catalog import load_track
 from clonedrive.world.track import Track, wrap_angle
 from clonedrive.world.vehicle import (
     MPH_TO_MPS,
+    PHYSICS_HZ,
     Controls,
     RoadContact,
     VehicleParams,
@@ -48,7 +49,7 @@ class SimConfig:
     """How the simulator runs. Defaults match the Udacity simulator's recording rig."""
 
     control_hz: float = CONTROL_HZ  #: control (and camera) rate [Hz]: Udacity records at ~15 Hz
-    physics_hz: float = 150.0  #: physics sub-step rate [Hz], a multiple of control_hz
+    physics_hz: float = PHYSICS_HZ  #: physics sub-step rate [Hz], a multiple of control_hz
     cameras: tuple[str, ...] = ("center", "left", "right")  #: () = state only, no rendering
     image_width: int = IMAGE_WIDTH
     image_height: int = IMAGE_HEIGHT

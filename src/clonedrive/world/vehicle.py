@@ -58,6 +58,9 @@ class VehicleParams:
         return math.radians(self.max_wheel_angle_deg)
 
 
+#: The rate the simulator integrates the car at [Hz] (its control period is several steps).
+PHYSICS_HZ = 150.0
+
 #: The car's top speed [mph]: a set speed above it cannot be held.
 TOP_SPEED_MPH = round(VehicleParams.top_speed_mps / MPH_TO_MPS, 6)
 

@@ -5,7 +5,7 @@ suite, in its direction, from its start, obeying as late as the episode's latenc
 the same rules as a model. Prints each split's clean count and every episode that was not
 clean; the JSON line's `expert_clean` should equal `episodes`.
 
-Run: python benchmarks/suite_expert.py [--suite v3] [--workers N]
+Run: python benchmarks/suite_expert.py [--suite v4] [--split NAME ...] [--workers N]
 """
 
 from __future__ import annotations
@@ -17,15 +17,23 @@ import time
 
 def main() -> int:
     from clonedrive.base.workers import default_workers, run_tasks
+    from clonedrive.bench import DEFAULT_SUITE
     from clonedrive.bench.driving import BatchTask, drive_batch
     from clonedrive.bench.suite import load_suite
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", default="v3", help="a built-in suite or a suite file")
+    parser.add_argument("--suite", default=DEFAULT_SUITE,
+                        help=f"a built-in suite or a suite file (default {DEFAULT_SUITE})")
+    parser.add_argument("--split", action="append", default=None,
+                        help="drive only this split (repeatable; default every split)")
     parser.add_argument("--workers", type=int, default=default_workers())
     args = parser.parse_args()
     suite = load_suite(args.suite)
-    episodes = suite.episodes()
+    unknown = sorted(set(args.split or ()) - set(suite.split_names()))
+    if unknown:
+        parser.error(f"no split {', '.join(unknown)} in suite {suite.id} "
+                     f"(it has {', '.join(suite.split_names())})")
+    episodes = suite.episodes(tuple(args.split) if args.split else None)
     tasks = [BatchTask(kind="expert", latency=True, episodes=tuple(episodes[i:i + 8]))
              for i in range(0, len(episodes), 8)]
     started = time.perf_counter()
@@ -33,7 +41,7 @@ def main() -> int:
                for run in batch]
     wall_s = time.perf_counter() - started
     unclean = [run for run in results if not run["clean"]]
-    for split in suite.split_names():
+    for split in args.split or suite.split_names():
         runs = [run for run in results if run["split"] == split]
         print(f"{split:<28} expert clean {sum(run['clean'] for run in runs):>3}/{len(runs)}")
     for run in unclean:

@@ -177,3 +177,54 @@ def test_the_repositorys_leaderboard_page_is_made_from_its_data() -> None:
     assert again["methods"] == report["methods"] and again["models"] == report["models"]
     page = markdown(again, ["bench_success.png", "bench_lap_time.png"])
     assert page == (board / "leaderboard.md").read_text(encoding="utf-8")
+
+
+def _newer(suite: dict, **dev_changes) -> dict:
+    """``suite`` as a newer version: id s2, its dev split redefined by ``dev_changes``."""
+    splits = [dict(s, **dev_changes) if s["name"] == "dev" else dict(s)
+              for s in suite["splits"]]
+    splits[0]["description"] = "reworded, the same episodes"
+    return {**suite, "id": "s2", "splits": splits}
+
+
+def test_runs_of_an_earlier_suite_carry_into_a_newer_one_split_by_split(models) -> None:
+    old = _report(models, SPLITS)
+    old["suite"]["conditions"] = {"clear": {"description": "as recorded", "light": 1.0}}
+    newer = _newer(old["suite"], tracks=["mountain"])
+    dev = _report(models, ("dev",), suite="s2")
+    dev["suite"] = newer
+    merged = merge_reports([("old.json", old), ("dev.json", dev)], suite=newer)
+    assert merged["suite"]["id"] == "s2"
+    assert merged["settings"]["left_out"] == {"old.json": ["dev"]}
+    for path, runs in models.items():  # easy and hard from the old run, dev from the new one
+        assert merged["models"][path]["runs"] == runs
+    # A split whose conditions draw other values has other episodes: left out too.
+    changed = {**newer, "conditions": {"clear": {"description": "as recorded", "light": 0.5}}}
+    with pytest.raises(MergeError, match="suite s2 defines every split of the runs otherwise"):
+        merge_reports([("old.json", old)], suite=changed)
+    # Without a suite, runs of two suite ids are still refused.
+    with pytest.raises(MergeError, match=r"dev\.json is of suite s2, old\.json of s"):
+        merge_reports([("old.json", old), ("dev.json", dev)])
+
+
+def test_merge_carries_a_v3_run_into_v4_keeping_all_but_the_dev_tier(
+        tmp_path: Path, models, capsys: pytest.CaptureFixture) -> None:
+    from clonedrive.bench.suite import load_suite
+
+    v3 = load_suite("v3", check_tracks=False)
+    runs = {path: [dict(run, key=run["key"].replace(run["split"], split), split=split)
+                   for split in ("hard-30", "dev")
+                   for run in runs if run["split"] == "easy"] for path, runs in models.items()}
+    report = _report(runs, ("hard-30", "dev"), suite="v3")
+    report["suite"] = v3.to_dict()
+    (tmp_path / "v3run").mkdir()
+    (tmp_path / "v3run" / "bench.json").write_text(json.dumps(report), encoding="utf-8")
+    out = tmp_path / "v4"
+    assert main(["bench", "merge", str(tmp_path / "v3run"), "--suite", "v4", "--out",
+                 str(out)]) == 0
+    assert "left out split(s) dev (suite v4 defines them otherwise)" in capsys.readouterr().out
+    merged = json.loads((out / "bench.json").read_text())
+    assert merged["suite"]["id"] == "v4" and merged["split_names"] == ["hard-30"]
+    assert main(["bench", "merge", str(tmp_path / "v3run"), "--suite", "v9", "--out",
+                 str(out)]) == 2
+    assert "v9: no such suite" in capsys.readouterr().err

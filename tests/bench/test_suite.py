@@ -137,3 +137,20 @@ def test_v3_has_at_least_24_episodes_a_split_a_harder_tier_and_a_dev_tier():
         assert family == FAMILIES[name], name
     # v2 stays built in, unchanged, for comparison
     assert len(load_suite("v2").episodes()) == 44
+
+
+def test_v4_is_v3_episode_for_episode_but_for_a_dev_tier_on_hard_tracks_of_its_own():
+    v3, v4 = load_suite("v3"), load_suite("v4")
+    assert v4.split_names() == v3.split_names()
+    for name in v3.split_names():
+        if name != "dev":
+            assert v4.episodes((name,)) == v3.episodes((name,)), name
+    dev = v4.episodes(("dev",))
+    assert len(dev) == 12
+    assert all(e.track.startswith("gen2:hard:") and e.speed_mph == 30.0 for e in dev)
+    assert {e.reverse for e in dev} == {False, True}
+    assert {e.family for e in dev} == {"clear", "dusk-late"}
+    elsewhere = {t for s in v4.splits if s.name != "dev" for t in s.tracks}
+    assert not {e.track for e in dev} & (elsewhere | {"gen2:hard:3000", "gen2:hard:3001"})
+    for name, family in v4.families.items():
+        assert family == FAMILIES[name], name

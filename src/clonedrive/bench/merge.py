@@ -8,8 +8,11 @@ measured it, and the dev tier's agreement with the rest
 (:func:`clonedrive.bench.scores.dev_agreement`).
 
 Inputs must come from the same suite id and the same renderer (frames differ slightly between
-renderers), and no model may have driven one episode twice. Each model's runs are put in the
-suite's order, so the intervals do not depend on the order of the inputs. ``compact`` keeps of
+renderers), and no model may have driven one episode twice. Given a ``suite``, runs of an
+earlier version are carried into it (:func:`carry_into`): a split it defines alike keeps its
+runs, so a new suite version that changes one split need not drive the others again. Each
+model's runs are put in the suite's order, so the intervals do not depend on the order of the
+inputs. ``compact`` keeps of
 each run only what the figures and ``bench compare`` need, for results kept in a repository.
 """
 
@@ -53,10 +56,55 @@ def load_bench_run(spec: str) -> dict:
     return report
 
 
-def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False) -> dict:
-    """One bench report from ``(name, bench.json content)`` pairs of one suite."""
+def carry_into(report: dict, suite: dict) -> tuple[dict, list[str]]:
+    """``report`` (a bench.json's content) as a run of ``suite`` (a suite's ``to_dict()``): the
+    runs of each split that ``suite`` defines alike (the same episodes: tracks, speeds,
+    directions, starts, conditions with their families' values, seed and laps), none of the
+    others. Returns the carried report and the names of the splits left out."""
+    if report.get("suite", {}).get("id") == suite["id"]:
+        return report, []
+    kept = {name for name in _suite_splits(report)
+            if _episodes_of(report["suite"], name) is not None
+            and _episodes_of(report["suite"], name) == _episodes_of(suite, name)}
+    carried = {**report, "suite": suite, "models": {
+        entry: {**model, "runs": [run for run in model.get("runs", []) if run["split"] in kept]}
+        for entry, model in report["models"].items()}}
+    return carried, [name for name in _suite_splits(report) if name not in kept]
+
+
+def _episodes_of(suite: dict, split_name: str) -> tuple | None:
+    """What decides a split's episodes in a suite's ``to_dict()`` (descriptions aside)."""
+    split = next((s for s in suite.get("splits", []) if s["name"] == split_name), None)
+    if split is None:
+        return None
+    families = suite.get("conditions", {})
+    return (suite.get("laps"), _without_description(split),
+            [_without_description(families.get(name, {})) for name in split["conditions"]])
+
+
+def _without_description(table: dict) -> dict:
+    return {key: value for key, value in table.items() if key != "description"}
+
+
+def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False,
+                  suite: dict | None = None) -> dict:
+    """One bench report from ``(name, bench.json content)`` pairs of one suite (or, given
+    ``suite``, carried into it by :func:`carry_into`; ``settings.left_out`` then names each
+    input's splits that suite defines otherwise)."""
     if not named:
         raise MergeError("nothing to merge")
+    left_out: dict[str, list[str]] = {}
+    if suite is not None:
+        carried = []
+        for name, report in named:
+            report, dropped = carry_into(report, suite)
+            carried.append((name, report))
+            if dropped:
+                left_out[name] = dropped
+        named = carried
+        if not any(model["runs"] for _, report in named for model in report["models"].values()):
+            raise MergeError(f"suite {suite['id']} defines every split of the runs otherwise: "
+                             "nothing to carry into it")
     first_name, first = named[0]
     for name, report in named[1:]:
         _check_same(first_name, first, name, report)
@@ -90,6 +138,8 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False) -
         "reference": {} if compact else reference, "models": models, "methods": methods,
         "split_names": split_names, "dev_agreement": dev_agreement(models),
     }
+    if left_out:
+        merged["settings"]["left_out"] = left_out
     if offline and all("offline_mse" in m for m in models.values()):
         merged["offline"] = _offline(offline, models)
     return merged

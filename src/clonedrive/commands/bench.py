@@ -32,7 +32,8 @@ DESCRIPTION = (
     "p-value, and a sentence saying whether A or B is better; for methods of several models, "
     "the same over training seeds too. `clonedrive bench merge RUN... "
     "--out DIR` merges bench runs of one suite made apart (a split or a model at a time) into "
-    "one bench.json and leaderboard (--compact keeps only each run's figures)."
+    "one bench.json and leaderboard (--compact keeps only each run's figures; --suite carries "
+    "runs of an earlier suite into a newer one, keeping the splits it defines alike)."
 )
 #: Example command lines, shown at the end of ``clonedrive bench --help``.
 EXAMPLES = (
@@ -40,6 +41,7 @@ EXAMPLES = (
     "clonedrive bench a=runs/a/model.keras b=runs/b/model.keras --split new-tracks-hard",
     "clonedrive bench compare runs/a/bench runs/b/bench",
     "clonedrive bench merge runs/x/dev runs/x/hard-30 --out runs/x/bench",
+    "clonedrive bench merge runs/v3-run runs/v4-dev --suite v4 --out runs/x/bench",
 )
 
 
@@ -47,8 +49,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("models", nargs="+", metavar="MODEL",
                         help="PATH or LABEL=PATH; or: compare A B (two bench runs); or: "
                              "merge RUN... (bench runs of one suite)")
-    parser.add_argument("--suite", default=DEFAULT_SUITE,
-                        help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE})")
+    parser.add_argument("--suite", default=None,
+                        help=f"built-in suite name or a suite .toml (default {DEFAULT_SUITE}); "
+                             "merge: carry runs of an earlier suite into this one, keeping the "
+                             "splits it defines alike")
     parser.add_argument("--split", action="append", default=None, metavar="NAME",
                         help="run only this split (repeatable)")
     parser.add_argument("--workers", type=count(MAX_WORKERS), default=None, metavar="N",
@@ -87,7 +91,7 @@ def run(args) -> int:
         print(problem, file=sys.stderr)
         return 2
     try:
-        config = BenchConfig(models=tuple(args.models), suite=args.suite,
+        config = BenchConfig(models=tuple(args.models), suite=args.suite or DEFAULT_SUITE,
                              splits=tuple(args.split or ()), workers=args.workers,
                              ray=args.ray, batch=args.batch,
                              **steering_options(args),
@@ -126,14 +130,16 @@ def _merge(args) -> int:
     from clonedrive.base.paths import check_output_folder
     from clonedrive.bench.leaderboard import write_leaderboard
     from clonedrive.bench.merge import MergeError, load_bench_run, merge_reports
+    from clonedrive.bench.suite import SuiteError, load_suite
 
     if len(args.models) < 2:
         print("clonedrive bench: merge takes bench runs: merge RUN... --out DIR",
               file=sys.stderr)
         return 2
     try:
+        suite = load_suite(args.suite).to_dict() if args.suite else None
         named = [(spec, load_bench_run(spec)) for spec in args.models[1:]]
-        report = merge_reports(named, compact=args.compact)
+        report = merge_reports(named, compact=args.compact, suite=suite)
         check_output_folder(args.out)
         Path(args.out).mkdir(parents=True, exist_ok=True)
         if args.compact:  # for keeping in a repository: one line, no indentation
@@ -142,13 +148,16 @@ def _merge(args) -> int:
         else:
             write_json_atomic(Path(args.out) / "bench.json", report)
         write_leaderboard(report, args.out)
-    except (MergeError, OSError, ValueError) as error:
+    except (MergeError, SuiteError, OSError, ValueError) as error:
         print(f"clonedrive bench: {error}", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
     _print_methods(report)
+    for name, splits in report["settings"].get("left_out", {}).items():
+        print(f"{name}: left out split(s) {', '.join(splits)} (suite {report['suite']['id']} "
+              "defines them otherwise)")
     print(f"merged {len(named)} bench run(s); wrote {args.out}/bench.json, leaderboard.md, "
           "leaderboard.html")
     return 0

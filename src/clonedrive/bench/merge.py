@@ -12,8 +12,8 @@ renderers), and no model may have driven one episode twice. Given a ``suite``, r
 earlier version are carried into it (:func:`carry_into`): a split it defines alike keeps its
 runs, so a new suite version that changes one split need not drive the others again. Each
 model's runs are put in the suite's order, so the intervals do not depend on the order of the
-inputs. ``compact`` keeps of
-each run only what the figures and ``bench compare`` need, for results kept in a repository.
+inputs. ``compact`` keeps of each run only what the figures and ``bench compare`` need, for
+results kept in a repository.
 """
 
 from __future__ import annotations

@@ -225,6 +225,12 @@ def test_merge_carries_a_v3_run_into_v4_keeping_all_but_the_dev_tier(
     assert "left out split(s) dev (suite v4 defines them otherwise)" in capsys.readouterr().out
     merged = json.loads((out / "bench.json").read_text())
     assert merged["suite"]["id"] == "v4" and merged["split_names"] == ["hard-30"]
+    page = (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert "Carried into suite v4 from `" in page
+    assert "v3run`, without its split(s) dev, which this suite defines otherwise" in page
+    # Merged again (the board gaining a row), the carried run's note stays.
+    again = merge_reports([("v4", json.loads((out / "bench.json").read_text()))])
+    assert again["settings"]["left_out"] == merged["settings"]["left_out"]
     assert main(["bench", "merge", str(tmp_path / "v3run"), "--suite", "v9", "--out",
                  str(out)]) == 2
     assert "v9: no such suite" in capsys.readouterr().err

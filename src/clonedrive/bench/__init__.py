@@ -1,4 +1,4 @@
 """Benchmark suites, their episodes run on worker processes, scores and the leaderboard."""
 
 #: The built-in suite that bench and dagger drive unless told otherwise (bench/suites/).
-DEFAULT_SUITE = "v3"
+DEFAULT_SUITE = "v4"

@@ -171,10 +171,14 @@ def markdown(report: dict, images: list[str]) -> str:
                      f"{_value(offline['vs_driving_score']['spearman'])}"
                      if "vs_driving_score" in offline else "") + "."]
     lines += _agreement_lines(report.get("dev_agreement"))
-    merged = (report.get("settings") or {}).get("merged_from")
+    settings = report.get("settings") or {}
+    merged = settings.get("merged_from")
     if merged:
         lines += ["", f"Merged from {len(merged)} bench runs: "
                   + ", ".join(f"`{_md(name)}`" for name in merged) + "."]
+    for name, splits in (settings.get("left_out") or {}).items():
+        lines += ["", f"Carried into suite {_md(suite['id'])} from `{_md(name)}`, without its "
+                  f"split(s) {_md(', '.join(splits))}, which this suite defines otherwise."]
     lines += ["", "## Splits", ""]
     lines += [f"- **{_md(s['name'])}**: {_md(s['description'])} ({len(s['tracks'])} tracks x "
               f"{', '.join(f'{v:g}' for v in s['speeds_mph'])} mph x "

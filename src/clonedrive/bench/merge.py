@@ -93,7 +93,9 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False,
     input's splits that suite defines otherwise)."""
     if not named:
         raise MergeError("nothing to merge")
-    left_out: dict[str, list[str]] = {}
+    left_out: dict[str, list[str]] = {}  # what earlier merges left out too
+    for _, report in named:
+        left_out.update((report.get("settings") or {}).get("left_out") or {})
     if suite is not None:
         carried = []
         for name, report in named:

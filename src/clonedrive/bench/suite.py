@@ -1,6 +1,6 @@
 """Benchmark suites: named, versioned splits of episodes, read from a TOML file.
 
-A suite file (``bench/suites/v3.toml`` is the built-in ``v3``; copy it to make your own) holds
+A suite file (``bench/suites/v4.toml`` is the built-in ``v4``; copy it to make your own) holds
 an ``id``, the laps per episode, ``[[split]]`` tables and ``[conditions.NAME]`` families (see
 :mod:`clonedrive.sim.conditions`). A split drives every combination of its ``tracks``,
 ``speeds_mph``, ``directions`` (``forward``, ``reverse``; default forward only), ``starts``

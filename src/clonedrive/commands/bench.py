@@ -17,8 +17,8 @@ from clonedrive.commands.render_options import add_render_arguments, renderer_er
 
 HELP = "drive models through a versioned benchmark suite (splits, conditions) in parallel"
 DESCRIPTION = (
-    "Drive one or more models through every split of a benchmark suite (built in: v3, the "
-    "default, and v2; or a .toml file copied from one): seen tracks, new generated tracks at "
+    "Drive one or more models through every split of a benchmark suite (built in: v4, the "
+    "default, v3 and v2; or a .toml file copied from one): seen tracks, new generated tracks at "
     "three difficulties, held-out conditions, harder tiers at the 30 mph cap. The expert "
     "drives each track and speed cap once as the reference. "
     "Writes bench.json, leaderboard.md and leaderboard.html with plots. Give models as PATH or "

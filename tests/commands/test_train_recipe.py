@@ -30,7 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.01)
+        mirror_average=True, steering_hold=0.01, steering_filter_s=0.05)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -53,8 +53,9 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--out", str(out), "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
     assert header["mirror_average"] is True and header["steering_hold"] == 0.01
+    assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 1}
+    assert header["recipe"] == {"name": "best", "version": 2}
     # Options given override the file one by one.
     out = tmp_path / "eval2"
     assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",

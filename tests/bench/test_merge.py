@@ -198,6 +198,12 @@ def test_runs_of_an_earlier_suite_carry_into_a_newer_one_split_by_split(models) 
     assert merged["settings"]["left_out"] == {"old.json": ["dev"]}
     for path, runs in models.items():  # easy and hard from the old run, dev from the new one
         assert merged["models"][path]["runs"] == runs
+    # A model that drove only what is left out is left out with it.
+    only_dev = _report({"/m/dev-only.keras": models["/m/q20.keras"]}, ("dev",))
+    only_dev["suite"] = old["suite"]
+    merged = merge_reports([("old.json", old), ("only.json", only_dev)], suite=newer)
+    assert "/m/dev-only.keras" not in merged["models"] and len(merged["models"]) == 4
+    assert merged["settings"]["left_out"]["only.json"] == ["dev"]
     # A split whose conditions draw other values has other episodes: left out too.
     changed = {**newer, "conditions": {"clear": {"description": "as recorded", "light": 0.5}}}
     with pytest.raises(MergeError, match="suite s2 defines every split of the runs otherwise"):

@@ -66,9 +66,11 @@ def carry_into(report: dict, suite: dict) -> tuple[dict, list[str]]:
     kept = {name for name in _suite_splits(report)
             if _episodes_of(report["suite"], name) is not None
             and _episodes_of(report["suite"], name) == _episodes_of(suite, name)}
-    carried = {**report, "suite": suite, "models": {
-        entry: {**model, "runs": [run for run in model.get("runs", []) if run["split"] in kept]}
-        for entry, model in report["models"].items()}}
+    models = {entry: {**model, "runs": [run for run in model.get("runs", [])
+                                        if run["split"] in kept]}
+              for entry, model in report["models"].items()}
+    carried = {**report, "suite": suite,  # a model left with no runs is left out too
+               "models": {entry: model for entry, model in models.items() if model["runs"]}}
     return carried, [name for name in _suite_splits(report) if name not in kept]
 
 
@@ -104,7 +106,7 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False,
             if dropped:
                 left_out[name] = dropped
         named = carried
-        if not any(model["runs"] for _, report in named for model in report["models"].values()):
+        if not any(report["models"] for _, report in named):
             raise MergeError(f"suite {suite['id']} defines every split of the runs otherwise: "
                              "nothing to carry into it")
     first_name, first = named[0]

@@ -21,7 +21,7 @@ import numpy as np
 
 
 def main() -> int:
-    from clonedrive.bench.bench_file import read_bench_file
+    from clonedrive.bench.bench_file import BenchFileError, read_bench_file
     from clonedrive.bench.scores import DEV_SPLIT
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -30,7 +30,12 @@ def main() -> int:
     parser.add_argument("--draws", type=int, default=300, help="random halvings of the methods")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    _, report = read_bench_file(args.bench, args.bench)
+    try:
+        _, report = read_bench_file(args.bench, args.bench)
+    except BenchFileError as error:
+        parser.error(str(error))
+    if not isinstance(report.get("models"), dict) or len(report["models"]) < 3:
+        parser.error(f"{args.bench}: needs a bench run of at least 3 models")
     labels, splits, scores = _score_table(report)
     print(f"{args.bench}: suite {report['suite']['id']}, {len(labels)} models of "
           f"{len(set(labels))} methods, {scores.shape[1]} episodes")
@@ -56,9 +61,8 @@ def _score_table(report: dict) -> tuple[list[str], np.ndarray, np.ndarray]:
     """Each model's label, each episode's split and the (models x episodes) driving scores,
     over the episodes every model drove."""
     models = list(report["models"].values())
-    keys = [run["key"] for run in models[0]["runs"]]
-    shared = [k for k in keys if all(any(r["key"] == k for r in m["runs"]) for m in models)]
     table = [{r["key"]: r["scores"]["driving_score"] for r in m["runs"]} for m in models]
+    shared = [key for key in table[0] if all(key in row for row in table)]
     scores = np.array([[row[k] for k in shared] for row in table], dtype=float)
     splits = np.array([k.split("/")[0] for k in shared])
     return [m["label"] for m in models], splits, scores
@@ -71,12 +75,11 @@ def _cross_validate(labels, splits, scores, dev_split, args) -> tuple[float, flo
     picked, dev = [], []
     for _ in range(args.draws):
         half = set(rng.permutation(methods)[:len(methods) // 2])
-        a = np.array([label in half for label in labels])
-        chosen = _pick(scores[a], outside, args.size)
-        for b_mask, tier, out in ((~a, chosen, picked), (~a, ~outside, dev)):
+        chooser = np.array([label in half for label in labels])
+        held_out = scores[~chooser]
+        for tier, out in ((_pick(scores[chooser], outside, args.size), picked), (~outside, dev)):
             rest = outside & ~tier
-            out.append(_spearman(scores[b_mask][:, tier].mean(1),
-                                 scores[b_mask][:, rest].mean(1)))
+            out.append(_spearman(held_out[:, tier].mean(1), held_out[:, rest].mean(1)))
     return _mean(picked), _mean(dev)
 
 

@@ -64,8 +64,7 @@ def carry_into(report: dict, suite: dict) -> tuple[dict, list[str]]:
     if report.get("suite", {}).get("id") == suite["id"]:
         return report, []
     kept = {name for name in _suite_splits(report)
-            if _episodes_of(report["suite"], name) is not None
-            and _episodes_of(report["suite"], name) == _episodes_of(suite, name)}
+            if _episodes_of(report["suite"], name) == _episodes_of(suite, name)}
     models = {entry: {**model, "runs": [run for run in model.get("runs", [])
                                         if run["split"] in kept]}
               for entry, model in report["models"].items()}

@@ -166,6 +166,13 @@ def test_the_bench_command_drives_with_the_steering_options(tmp_path, tiny_model
     settings = json.loads((out / "bench.json").read_text(encoding="utf-8"))["settings"]
     assert (settings["steering_hold"], settings["steering_filter_s"],
             settings["mirror_average"]) == (0.3, 0.1, True)
+    # --resume with other options: one line naming the file and the field, nothing changed.
+    before = (out / "bench.json").read_bytes()
+    assert main(["bench", tiny_models[0], "--suite", str(suite_path), "--split", "a",
+                 "--max-seconds", "2", "--no-scenery", "--out", str(out), "--resume"]) == 2
+    error = capsys.readouterr().err
+    assert "bench.json: its 'settings' differs" in error and "Traceback" not in error
+    assert (out / "bench.json").read_bytes() == before
 
 
 def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same(
@@ -197,3 +204,40 @@ def test_a_model_with_many_batches_is_traced_once_and_its_workers_drive_the_same
     finally:
         torch.set_num_threads(before)
     assert json.dumps(traced, sort_keys=True) == json.dumps(from_file, sort_keys=True)
+
+
+@pytest.mark.slow
+def test_a_resumed_bench_keeps_the_finished_batches_and_ends_as_an_uninterrupted_run(
+        tmp_path, tiny_models):
+    from clonedrive.bench.resume import ResumeError
+
+    suite_path = tmp_path / "tiny.toml"
+    suite_path.write_text(SUITE, encoding="utf-8")
+    config = BenchConfig(models=(f"a={tiny_models[0]}", f"b={tiny_models[1]}"),
+                         suite=str(suite_path), workers=2, batch=1, max_seconds=3.0,
+                         scenery=False)
+    whole = bench(config, tmp_path / "whole", progress=False)
+    # An interrupted run: model b's last batch and the completion are missing, and one of the
+    # kept runs is marked, so the resumed file shows whether it was kept or driven again.
+    cut = json.loads((tmp_path / "whole" / "bench.json").read_text(encoding="utf-8"))
+    cut["complete"] = False
+    cut["models"][f"b={tiny_models[1]}"]["runs"].pop()
+    cut["models"][f"a={tiny_models[0]}"]["runs"][0]["marked"] = True
+    (tmp_path / "cut").mkdir()
+    (tmp_path / "cut" / "bench.json").write_text(json.dumps(cut), encoding="utf-8")
+    resumed = bench(replace(config, workers=1), tmp_path / "cut", progress=False, resume=True)
+    assert resumed["complete"]
+    kept = resumed["models"][f"a={tiny_models[0]}"]["runs"]
+    assert kept[0].pop("marked") is True  # kept, not driven again
+    assert json.dumps(resumed["models"], sort_keys=True) == json.dumps(
+        json.loads(json.dumps(whole["models"])), sort_keys=True)
+    assert (tmp_path / "cut" / "leaderboard.html").is_file()
+    # A bench.json made with other settings is refused, and left as it was.
+    before = (tmp_path / "cut" / "bench.json").read_bytes()
+    with pytest.raises(ResumeError, match="'settings' differs"):
+        bench(replace(config, max_seconds=2.0), tmp_path / "cut", progress=False, resume=True)
+    assert (tmp_path / "cut" / "bench.json").read_bytes() == before
+    # Nothing to resume: the run starts from the first batch.
+    fresh = bench(config, tmp_path / "new", progress=False, resume=True)
+    assert json.dumps(fresh["models"], sort_keys=True) == json.dumps(whole["models"],
+                                                                      sort_keys=True)

@@ -158,8 +158,11 @@ def plan_tasks(suite: Suite, config: BenchConfig) -> tuple[list[BatchTask], list
     return tasks, refs
 
 
-def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) -> dict:
-    """Run the benchmark and write its files; returns bench.json's content."""
+def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True,
+          resume: bool = False) -> dict:
+    """Run the benchmark and write its files; returns bench.json's content. ``resume``: keep
+    the finished batches of an interrupted run of the same benchmark in ``out_dir``
+    (:mod:`clonedrive.bench.resume`) and drive only the others."""
     from clonedrive.base.progress import progress_bar
     from clonedrive.base.workers import default_workers, run_tasks
     from clonedrive.bench.driving import drive_batch
@@ -186,21 +189,26 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         "rendering": {**renderer_info(config.renderer), "full_frame": config.full_frame},
         "complete": False,
     }
+    results = _resumed_results(out, report, tasks) if resume else {}
+    pending = [index for index in range(len(tasks)) if index not in results]
+    report.update(assemble(tasks, results, config, suite))
+    report["complete"] = not pending
     write_json_atomic(out / "bench.json", report)  # a previous run's results are not this one's
-    results: dict[int, list[dict]] = {}
     episodes = sum(len(task.episodes) for task in tasks)
-    bar = progress_bar(total=episodes, unit="episode", desc="bench", enabled=progress)
+    bar = progress_bar(total=episodes, unit="episode", desc="bench", enabled=progress,
+                       initial=sum(len(result) for result in results.values()))
 
-    def on_done(index: int, result: list[dict]) -> None:
-        results[index] = result
+    def on_done(done: int, result: list[dict]) -> None:
+        results[pending[done]] = result
         bar.update(len(result))
         report.update(assemble(tasks, results, config, suite))
         report["complete"] = len(results) == len(tasks)
         write_json_atomic(out / "bench.json", report)
 
     try:
-        _add_portable_models(tasks, config, workers)
-        run_tasks(drive_batch, tasks, workers=workers, ray=config.ray, on_done=on_done)
+        to_drive = [tasks[index] for index in pending]
+        _add_portable_models(to_drive, config, workers)
+        run_tasks(drive_batch, to_drive, workers=workers, ray=config.ray, on_done=on_done)
     finally:
         bar.close()
     if config.offline_data:
@@ -208,6 +216,23 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True) ->
         write_json_atomic(out / "bench.json", report)
     write_leaderboard(report, out)
     return report
+
+
+def _resumed_results(out: Path, report: dict, tasks: list[BatchTask]) -> dict[int, list[dict]]:
+    """The finished batches of the earlier run in ``out`` (none if it holds no bench.json)."""
+    import sys
+
+    from clonedrive.bench.resume import finished_batches, previous_report
+
+    previous = previous_report(out, report)
+    if previous is None:
+        print(f"bench: nothing to resume in {out}; starting from the first batch",
+              file=sys.stderr)
+        return {}
+    results = finished_batches(tasks, previous)
+    print(f"bench: resuming {out}: {len(results)} of {len(tasks)} batches already driven",
+          file=sys.stderr)
+    return results
 
 
 def _reference_of(run: dict) -> str:

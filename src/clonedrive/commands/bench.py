@@ -39,6 +39,7 @@ DESCRIPTION = (
 EXAMPLES = (
     "clonedrive bench runs/x/model.keras --out runs/x/bench",
     "clonedrive bench a=runs/a/model.keras b=runs/b/model.keras --split new-tracks-hard",
+    "clonedrive bench runs/x/model.keras --out runs/x/bench --resume",
     "clonedrive bench compare runs/a/bench runs/b/bench",
     "clonedrive bench merge runs/x/dev runs/x/hard-30 --out runs/x/bench",
     "clonedrive bench merge runs/v3-run runs/v4-dev --suite v4 --out runs/x/bench",
@@ -69,6 +70,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-scenery", action="store_true", help="road and terrain only")
     add_render_arguments(parser)
     parser.add_argument("--out", default="runs/bench", help="output folder")
+    parser.add_argument("--resume", action="store_true",
+                        help="go on from the bench.json an interrupted run of the same models "
+                             "and options left in --out: keep its finished batches, drive the "
+                             "rest")
     parser.add_argument("--json", action="store_true", help="print bench.json's content")
     parser.add_argument("--compact", action="store_true",
                         help="merge: keep only each run's episode, outcome and scores")
@@ -103,7 +108,7 @@ def run(args) -> int:
         check_output_folder(args.out)
         models = [model.split("=", 1)[-1] for model in args.models]  # LABEL=PATH
         with claim_output("bench", args.out, inputs=models):
-            report = bench(config, args.out, progress=not args.json)
+            report = bench(config, args.out, progress=not args.json, resume=args.resume)
     except (SuiteError, ValueError, FileNotFoundError, RuntimeError) as error:
         print(f"clonedrive bench: {error}", file=sys.stderr)
         return 2

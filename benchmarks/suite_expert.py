@@ -29,11 +29,10 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=default_workers())
     args = parser.parse_args()
     suite = load_suite(args.suite)
-    unknown = sorted(set(args.split or ()) - set(suite.split_names()))
-    if unknown:
-        parser.error(f"no split {', '.join(unknown)} in suite {suite.id} "
-                     f"(it has {', '.join(suite.split_names())})")
-    episodes = suite.episodes(tuple(args.split) if args.split else None)
+    try:
+        episodes = suite.episodes(tuple(args.split) if args.split else None)
+    except ValueError as error:
+        parser.error(str(error))
     tasks = [BatchTask(kind="expert", latency=True, episodes=tuple(episodes[i:i + 8]))
              for i in range(0, len(episodes), 8)]
     started = time.perf_counter()

@@ -123,3 +123,16 @@ def test_a_run_folder_with_a_deeply_nested_recipe_is_refused_in_one_line(
     message = refused(run_clonedrive("train", "--out", run, "--resume", "--epochs", "2"),
                       "train", 1)
     assert "nested too deep to read" in message
+
+
+def test_bench_and_dagger_name_a_misspelt_split_before_driving_anything(
+        tmp_path: Path, tiny_model_path: Path) -> None:
+    suite = tmp_path / "suite.toml"
+    suite.write_text(SUITE, encoding="utf-8")
+    result = run_clonedrive("bench", tiny_model_path, "--suite", suite, "--split", "a",
+                            "--split", "b", "--out", tmp_path / "b")
+    assert "suite tiny: no split named b; it has a" in refused(result, "bench", 2)
+    assert not (tmp_path / "b" / "bench.json").exists()
+    result = run_clonedrive("dagger", tmp_path / "no-run", "--suite", suite, "--bench-split",
+                            "dev", "--out", tmp_path / "d")
+    assert "no split named dev" in refused(result, "dagger", 2)

@@ -21,6 +21,9 @@ def test_v2_is_a_fixed_list_of_episodes_with_the_named_splits():
     held = {spec.family for spec in first if spec.split.startswith("new-tracks+")}
     assert held and all(suite.families[name].held_out for name in held)
     assert {spec.speed_mph for spec in first if spec.split == "new-tracks-hard"} == {20.0, 30.0}
+    # A split name the suite lacks is refused by name, even beside one it has.
+    with pytest.raises(SuiteError, match="no split named new-trakcs-easy; it has train-tracks"):
+        suite.episodes(("train-tracks", "new-trakcs-easy"))
     # the suite's condition families are the library's (one definition, checked)
     for name, family in suite.families.items():
         assert family == FAMILIES[name], name

@@ -111,7 +111,12 @@ class Suite:
     source: str
 
     def episodes(self, splits: tuple[str, ...] | None = None) -> list[EpisodeSpec]:
-        """Every episode, split by split in file order (only ``splits`` if given)."""
+        """Every episode, split by split in file order (only ``splits`` if given).
+        ``SuiteError`` naming any of ``splits`` the suite does not have."""
+        unknown = [name for name in splits or () if name not in self.split_names()]
+        if unknown:
+            raise SuiteError(f"suite {self.id}: no split named {', '.join(unknown)}; it has "
+                             f"{', '.join(self.split_names())}")
         out = []
         for split in self.splits:
             if splits and split.name not in splits:

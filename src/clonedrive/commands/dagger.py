@@ -88,6 +88,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from clonedrive.bench.suite import load_suite
     from clonedrive.data.output_lock import claim_output
     from clonedrive.pipelines.dagger.config import DaggerConfig
     from clonedrive.pipelines.dagger.figures import format_table
@@ -114,6 +115,8 @@ def run(args) -> int:
             renderer=args.renderer, full_frame=args.full_frame)
         for name in (*config.tracks, *config.eval_tracks):
             load_track(name)
+        if config.bench_splits:  # a misspelt split is named now, not after the first lap
+            load_suite(config.bench_suite).episodes(config.bench_splits)
     except (ValueError, TrackError) as error:  # a flag
         print(f"clonedrive dagger: {error}", file=sys.stderr)
         return 2

@@ -107,3 +107,35 @@ def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
     # Training again into the same folder is refused, as for one stage.
     assert main(["train", str(LAKE), "--recipe", str(recipe), "--epochs", "1",
                  "--out", str(out)]) == 1
+
+
+def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
+        tmp_path: Path, capsys):
+    """The second stage takes the first one's decoded images (here a memmap) instead of
+    decoding them again; the model is the one two separate stages make, and no cache file is
+    left."""
+    import dataclasses
+
+    from clonedrive.model.train import train
+    from clonedrive.network.model_file import load_model
+    from clonedrive.recipes.book import load_recipe_file
+    from clonedrive.recipes.training import run_stages, train_stages
+
+    recipe = load_recipe_file("best")
+    stages = [dataclasses.replace(config, epochs=1, batch_size=64, cache="memmap",
+                                  export_h5=False) for config in train_stages(recipe)]
+    assert len(stages) == 2
+    data = recipe.folders_recipe([LAKE])
+    run_stages(stages, data, tmp_path / "shared", progress=True)
+    printed = capsys.readouterr().out
+    assert printed.count("(the previous stage's, reused)") == 1
+    assert not list((tmp_path / "shared").rglob("image_cache.u8"))
+    # The same two stages, each decoding its own images.
+    train(stages[0], data, tmp_path / "apart" / "base", progress=False)
+    second = dataclasses.replace(stages[1],
+                                 init_from=str(tmp_path / "apart" / "base" / "model.keras"))
+    train(second, data, tmp_path / "apart", progress=False)
+    shared = load_model(tmp_path / "shared" / "model.keras").get_weights()
+    apart = load_model(tmp_path / "apart" / "model.keras").get_weights()
+    assert len(shared) == len(apart)
+    assert all(np.array_equal(a, b) for a, b in zip(shared, apart, strict=True))

@@ -123,6 +123,31 @@ def test_a_memmap_cache_lives_in_the_run_folder_until_closed(tmp_path: Path) -> 
     assert not (tmp_path / "run" / CACHE_FILE).exists()
 
 
+def test_a_handoff_gives_the_next_data_set_the_same_images_only(tmp_path: Path,
+                                                                  damaged: Path) -> None:
+    from clonedrive.data.dataset import ImageHandoff
+
+    handoff = ImageHandoff()
+    config = _config(cache="memmap")
+    first = _build(tmp_path, "one", config, folders=(damaged, MOUNTAIN))
+    handoff.keep(first.cache)
+    again = build_dataset(default_recipe_for([damaged, MOUNTAIN]), config, tmp_path / "one",
+                          progress=False, handoff=handoff)
+    assert again.cache is first.cache and "reused" in again.summary
+    assert again.report == first.report  # the bad image is skipped and counted as before
+    # Another crop needs other rows: the kept cache is deleted and a new one decoded.
+    handoff.keep(again.cache)
+    (tmp_path / "two").mkdir()
+    other = build_dataset(default_recipe_for([damaged, MOUNTAIN]),
+                          dataclasses.replace(config, crop_top_px=config.crop_top_px + 10),
+                          tmp_path / "two", progress=False, handoff=handoff)
+    assert other.cache is not first.cache and "reused" not in other.summary
+    assert not (tmp_path / "one" / CACHE_FILE).exists()
+    handoff.keep(other.cache)
+    handoff.close()
+    assert not (tmp_path / "two" / CACHE_FILE).exists()
+
+
 @pytest.mark.parametrize("where", ["__init__", "fill"])
 def test_an_interrupted_build_leaves_no_cache_file(tmp_path: Path, monkeypatch, where: str
                                                    ) -> None:

@@ -14,6 +14,10 @@ Deterministic: balancing draws from ``numpy.random.default_rng([seed, 1])`` and 
 ``[seed, 2]``; nothing else is random, so building twice gives the same samples in the same
 order. Interrupted (Ctrl-C, SIGTERM) or failing while the cache is made or filled, it leaves no
 cache file behind.
+
+Two training stages in one process (a recipe's ``[finetune]``) share the decoded images through
+an :class:`ImageHandoff`: the second stage reuses the first one's cache when it holds the same
+images and rows, instead of decoding every image again.
 """
 
 from __future__ import annotations
@@ -105,12 +109,41 @@ class _Images:
     dropped_samples: int
 
 
-def build_dataset(recipe: Recipe, config: DatasetConfig, out: Path, *, progress: bool
-                  ) -> Dataset:
+class ImageHandoff:
+    """Decoded images handed from one training stage to the next in the same process.
+
+    A stage :meth:`keep`\ s its cache instead of deleting it; the next stage :meth:`take`\ s
+    it when it needs the same images (in the same order) and rows, else it is deleted then.
+    :meth:`close` deletes what is left (a memmap's file too)."""
+
+    def __init__(self) -> None:
+        self.cache: ImageCache | None = None
+
+    def keep(self, cache: ImageCache) -> None:
+        self.close()
+        self.cache = cache
+
+    def take(self, paths: list[Path], rows: tuple[int, int]) -> ImageCache | None:
+        cache, self.cache = self.cache, None
+        if cache is not None and cache.rows == tuple(rows) and cache.paths == list(paths):
+            return cache
+        if cache is not None:
+            cache.close(delete=True)
+        return None
+
+    def close(self) -> None:
+        if self.cache is not None:
+            self.cache.close(delete=True)
+            self.cache = None
+
+
+def build_dataset(recipe: Recipe, config: DatasetConfig, out: Path, *, progress: bool,
+                  handoff: ImageHandoff | None = None) -> Dataset:
     """expand -> speed-label headroom -> balance -> split -> decode the used images once
     (unusable ones skipped); see the module doc. ``out`` is the run folder: it gets the
     balancing histograms and, for a memmap cache, :data:`CACHE_FILE`. ``ValueError`` when no
-    sample is usable, or when training or validation is left without one."""
+    sample is usable, or when training or validation is left without one. ``handoff``: an
+    earlier stage's decoded images, used when they are this data set's."""
     from clonedrive.data.split import split_samples
 
     out = Path(out)
@@ -126,7 +159,8 @@ def build_dataset(recipe: Recipe, config: DatasetConfig, out: Path, *, progress:
     lines.append(split.description)
 
     samples = samples.compact()
-    cache, failed = _filled_cache(config, samples, out, lines, progress=progress)
+    cache, failed = _filled_cache(config, samples, out, lines, progress=progress,
+                                  handoff=handoff)
     train_samples, dropped_train = samples.subset(split.train).drop_images(failed)
     val_samples, dropped_val = samples.subset(split.val).drop_images(failed)
     images = _Images(_count_reasons(failed), dropped_train + dropped_val)
@@ -248,16 +282,21 @@ def _unbalanced(result: BalanceResult) -> BalanceResult:
 
 
 def _filled_cache(config: DatasetConfig, samples: Samples, out: Path, lines: list[str], *,
-                  progress: bool) -> tuple[ImageCache, dict[int, ImageDecodeError]]:
+                  progress: bool, handoff: ImageHandoff | None = None
+                  ) -> tuple[ImageCache, dict[int, ImageDecodeError]]:
     """(the image cache holding every image of ``samples``, the images that failed to decode
     by index). Interrupted (Ctrl-C, SIGTERM) or failed, it leaves no cache file."""
     cache = None
     try:
-        cache = _open_cache(config, samples, out)
+        if handoff is not None:
+            cache = handoff.take(samples.unique_paths, cached_rows(config))
+        reused = cache is not None
+        cache = cache or _open_cache(config, samples, out)
         lines.append(
             f"image cache: {len(cache)} images, rows {cache.rows[0]}-{cache.rows[1] - 1} of "
             f"each, {cache.nbytes / 1e6:.0f} MB "
             + (f"memmap {cache.memmap_path}" if cache.memmap_path else "in memory")
+            + (" (the previous stage's, reused)" if reused else "")
         )
         return cache, cache.fill(workers=2, progress=progress)
     except BaseException:

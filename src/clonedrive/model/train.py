@@ -47,7 +47,7 @@ from clonedrive.base.config import (
     write_json_atomic,
     write_text_atomic,
 )
-from clonedrive.data.dataset import Dataset, build_dataset, discard_cache
+from clonedrive.data.dataset import Dataset, ImageHandoff, build_dataset, discard_cache
 from clonedrive.data.recipe import (
     DEFAULT_CORRECTION,
     Recipe,
@@ -96,6 +96,7 @@ def train(
     resume: bool = False,
     progress: bool = True,
     notes: dict | None = None,
+    handoff: ImageHandoff | None = None,
 ) -> TrainResult:
     """Train ``config.model`` on ``source`` (a Recipe, a recipe file, or recording folders)
     and write the run folder ``out_dir`` (see module doc).
@@ -107,6 +108,9 @@ def train(
     ``notes``: what every model file written carries about how to drive it and the recipe
     that made it (:func:`clonedrive.network.driving_settings.notes_for`); a resumed run keeps
     its ``last.keras``'s notes when given none.
+
+    ``handoff``: decoded images shared with the other stages of a multi-stage run; this run
+    takes them if they are its data set's, and leaves its own there instead of deleting them.
     """
     out = Path(out_dir)
     recipe = resolve_source(source, config.correction)
@@ -120,7 +124,8 @@ def train(
 
     data: Dataset | None = None
     try:
-        data = build_dataset(recipe, config.dataset_config(), out, progress=progress)
+        data = build_dataset(recipe, config.dataset_config(), out, progress=progress,
+                             handoff=handoff)
         write_json_atomic(out / "dataset.json", data.report)
         _print(progress, data.summary)
         epochs_done = state["epochs_done"]
@@ -139,9 +144,12 @@ def train(
                 callbacks=[recorder],
             )
     finally:
-        if data is not None:
-            data.close()
-        discard_cache(out)  # interrupted while the data set was being made: its cache goes too
+        if data is not None and handoff is not None:
+            handoff.keep(data.cache)  # for the next stage; the handoff deletes it at the end
+        else:
+            if data is not None:
+                data.close()
+            discard_cache(out)  # interrupted while the data set was being made: its cache too
 
     if config.export_h5 and (out / "model.keras").is_file():
         export_h5(out / "model.keras", out / "model.h5", notes=notes)

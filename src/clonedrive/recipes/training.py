@@ -43,25 +43,33 @@ def stage_dirs(out_dir: str | Path, count: int) -> list[Path]:
 def run_stages(stages: list, data, out_dir: str | Path, *, notes: dict | None = None,
                progress: bool = True):
     """Train every stage into its folder (:func:`stage_dirs`), each from the one before;
-    reuses finished stages and resumes interrupted ones. Returns the last stage's
-    TrainResult, or None when every stage was already finished."""
+    reuses finished stages and resumes interrupted ones. A stage reuses the images the stage
+    before it decoded when its data set is the same (:class:`ImageHandoff`). Returns the last
+    stage's TrainResult, or None when every stage was already finished."""
+    from clonedrive.data.dataset import ImageHandoff
     from clonedrive.model.train import train
 
     result = None
     previous: Path | None = None
-    for number, (config, folder) in enumerate(zip(stages, stage_dirs(out_dir, len(stages)),
-                                                  strict=True), start=1):
-        if previous is not None:
-            config = dataclasses.replace(config, init_from=str(previous / "model.keras"))
-        done = _epochs_done(folder)
-        previous = folder
-        if done >= config.epochs and (folder / "model.keras").is_file():
-            _say(progress, f"[train] stage {number} of {len(stages)}: already trained, reused")
-            continue
-        _say(progress, f"[train] stage {number} of {len(stages)}: {config.model} for "
-                       f"{config.epochs} epoch(s)"
-                       + (f", consistency {config.consistency:g}" if config.consistency else ""))
-        result = train(config, data, folder, resume=done > 0, progress=progress, notes=notes)
+    handoff = ImageHandoff()
+    try:
+        for number, (config, folder) in enumerate(zip(stages, stage_dirs(out_dir, len(stages)),
+                                                      strict=True), start=1):
+            if previous is not None:
+                config = dataclasses.replace(config, init_from=str(previous / "model.keras"))
+            done = _epochs_done(folder)
+            previous = folder
+            if done >= config.epochs and (folder / "model.keras").is_file():
+                _say(progress, f"[train] stage {number} of {len(stages)}: already trained, "
+                               "reused")
+                continue
+            _say(progress, f"[train] stage {number} of {len(stages)}: {config.model} for "
+                           f"{config.epochs} epoch(s)" + (f", consistency {config.consistency:g}"
+                                                          if config.consistency else ""))
+            result = train(config, data, folder, resume=done > 0, progress=progress,
+                           notes=notes, handoff=handoff)
+    finally:
+        handoff.close()
     return result
 
 

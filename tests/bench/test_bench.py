@@ -223,6 +223,10 @@ def test_a_resumed_bench_keeps_the_finished_batches_and_ends_as_an_uninterrupted
     cut["complete"] = False
     cut["models"][f"b={tiny_models[1]}"]["runs"].pop()
     cut["models"][f"a={tiny_models[0]}"]["runs"][0]["marked"] = True
+    # ... and made before the speed scale was a setting: it drove at its default.
+    del cut["settings"]["speed_scale"]
+    for settings in cut["driving"].values():
+        del settings["speed_scale"]
     (tmp_path / "cut").mkdir()
     (tmp_path / "cut" / "bench.json").write_text(json.dumps(cut), encoding="utf-8")
     resumed = bench(replace(config, workers=1), tmp_path / "cut", progress=False, resume=True)

@@ -111,6 +111,14 @@ def test_runs_that_cannot_be_merged_are_refused_naming_the_run(models) -> None:
     steadier["driving"]["q20"] = {"steering_hold": 0.05}
     with pytest.raises(MergeError, match=r"h\.json: method 'q20' drives with other settings"):
         merge_reports([easy, ("h.json", steadier)])
+    # A run made before a setting existed drove with its default: it merges with a run that
+    # names the default, not with one that names another value.
+    named = _report(models, ("hard",))
+    named["driving"]["q20"] = {"speed_scale": 1.0}
+    assert merge_reports([easy, ("n.json", named)])["driving"]["q20"]["speed_scale"] == 1.0
+    named["driving"]["q20"] = {"speed_scale": 1.05}
+    with pytest.raises(MergeError, match=r"n\.json: method 'q20' drives with other settings"):
+        merge_reports([easy, ("n.json", named)])
     with pytest.raises(MergeError, match="nothing to merge"):
         merge_reports([])
 

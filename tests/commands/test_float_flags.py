@@ -51,7 +51,9 @@ def test_dagger_refuses_what_cannot_train(tmp_path: Path, flag: str, value: str,
 
 @pytest.mark.parametrize(("flag", "value"), [("--steering-filter", "nan"),
                                              ("--steering-filter", "-1"),
-                                             ("--steering-hold", "inf")])
+                                             ("--steering-hold", "inf"),
+                                             ("--speed-scale", "3"),
+                                             ("--speed-scale", "nan")])
 def test_the_steering_options_are_refused_as_flags(tmp_path: Path, tiny_model_path: Path,
                                                    flag: str, value: str) -> None:
     result = run_clonedrive("evaluate", tiny_model_path, "--out", tmp_path / "e", flag, value)

@@ -56,6 +56,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
     assert header["recipe"] == {"name": "best", "version": 2}
+    assert header["speed_scale"] == 1.0
     # Options given override the file one by one.
     out = tmp_path / "eval2"
     assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",

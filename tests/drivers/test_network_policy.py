@@ -233,3 +233,22 @@ def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction() -> No
     assert mirrored.act(images[0], 20.0)[0] == pytest.approx(float(got_steering[0]), abs=1e-6)
     assert NetworkPolicy(model, **mirrored.options()).mirror_average is True
     assert plain.options()["mirror_average"] is False
+
+
+def test_speed_scale_multiplies_the_learned_target_speed_under_the_cap() -> None:
+    from clonedrive.model.architectures import build_model
+
+    model = build_model("fast", seed=5, speed_head=True)
+    learned = NetworkPolicy(model, 30.0)
+    faster = NetworkPolicy(model, 30.0, speed_scale=1.05)
+    assert learned.target_speed_mph(0.1, learned_speed_mph=20.0) == 20.0
+    assert faster.target_speed_mph(0.1, learned_speed_mph=20.0) == pytest.approx(21.0)
+    assert faster.target_speed_mph(0.1, learned_speed_mph=29.0) == 30.0  # the cap holds
+    # The floor and the set speed alone (no learned speed) are not scaled.
+    assert faster.target_speed_mph(0.1, learned_speed_mph=1.0) == pytest.approx(0.4 * 30.0)
+    assert faster.target_speed_mph(0.1) == 30.0
+    # Options (another process's policy) and the driving settings carry the scale.
+    assert NetworkPolicy(model, **faster.options()).speed_scale == 1.05
+    assert faster.driving_settings().speed_scale == 1.05
+    with pytest.raises(ValueError, match="speed_scale"):
+        NetworkPolicy(model, speed_scale=3.0)

@@ -87,7 +87,9 @@ def test_bad_notes_are_refused_naming_the_file(notes, message, tiny_model_path, 
 
 
 @pytest.mark.parametrize("values", [{"steering_hold": 1.5}, {"mirror_average": "yes"},
-                                    {"steering_filter_s": float("nan")}])
+                                    {"steering_filter_s": float("nan")}, {"speed_scale": 0},
+                                    {"speed_scale": 2.0}, {"speed_scale": True},
+                                    {"speed_scale": float("inf")}])
 def test_bad_settings_are_refused(values):
     with pytest.raises(ValueError):
         DrivingSettings(**values)
@@ -96,6 +98,16 @@ def test_bad_settings_are_refused(values):
 def test_describe_names_what_is_on():
     assert "mirror averaging" in CALM.describe() and "hold 0.02" in CALM.describe()
     assert "drive.py" in DrivingSettings().describe()
+    assert "learned speed x1.05" in DrivingSettings(speed_scale=1.05).describe()
+
+
+def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_path, tmp_path):
+    path = _copy(tiny_model_path, tmp_path, "old.keras")
+    with zipfile.ZipFile(path, "a") as archive:  # notes as files carried them before
+        archive.writestr(KERAS_MEMBER, '{"driving": {"steering_hold": 0.01, '
+                                       '"mirror_average": true}}')
+    assert load_policy(path).speed_scale == 1.0
+    assert load_policy(path, speed_scale=1.1).speed_scale == 1.1
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from clonedrive.bench.run import BENCH_FORMAT, summarize
 from clonedrive.bench.scores import dev_agreement, offline_correlations
+from clonedrive.network.driving_settings import DrivingSettings
 
 #: What a compacted run keeps: its episode, what its split's figures are pooled from, and its
 #: scores (no traces, no conditions); :func:`clonedrive.bench.scores.split_scores` and
@@ -152,7 +153,9 @@ def _driving(named: Sequence[tuple[str, dict]]) -> dict[str, dict]:
     """Each method's driving settings, which must be the same in every run it is in."""
     driving: dict[str, dict] = {}
     for name, report in named:
-        for label, settings in report.get("driving", {}).items():
+        for label, given in report.get("driving", {}).items():
+            # A setting added since a run was made is its default there.
+            settings = {**DrivingSettings().options(), **given}
             if driving.setdefault(label, settings) != settings:
                 raise MergeError(f"{name}: method {label!r} drives with other settings there "
                                  f"({settings}) than in another run ({driving[label]})")

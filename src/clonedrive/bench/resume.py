@@ -49,8 +49,21 @@ def previous_report(out: Path, report: dict) -> dict | None:
 
 
 def _comparable(field: str, value: object) -> object:
+    """``value`` of bench.json's ``field`` as compared: without the free settings, and with the
+    defaults of settings added since the run was made (what that run drove with)."""
+    import dataclasses
+
+    from clonedrive.bench.run import BenchConfig
+    from clonedrive.network.driving_settings import DrivingSettings
+
     if field == "settings" and isinstance(value, dict):
-        return {key: item for key, item in value.items() if key not in FREE_SETTINGS}
+        defaults = {f.name: f.default for f in dataclasses.fields(BenchConfig)
+                    if f.default is not dataclasses.MISSING}
+        return {key: item for key, item in {**defaults, **value}.items()
+                if key not in FREE_SETTINGS}
+    if field == "driving" and isinstance(value, dict):
+        return {label: {**DrivingSettings().options(), **settings}
+                if isinstance(settings, dict) else settings for label, settings in value.items()}
     return value
 
 

@@ -61,6 +61,7 @@ class BenchConfig:
     steering_filter_s: float | None = None  #: low-pass on the predicted steering [s]
     steering_hold: float | None = None  #: hold the wheel through smaller steering jitter
     mirror_average: bool | None = None  #: average each frame's prediction with its mirror's
+    speed_scale: float | None = None  #: a speed head's target speed times this
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -92,7 +93,8 @@ class BenchConfig:
         the rest keep their defaults: drive.py's PI gains."""
         given = {"slow_in_curves": self.slow_in_curves,
                  "steering_filter_s": self.steering_filter_s,
-                 "steering_hold": self.steering_hold, "mirror_average": self.mirror_average}
+                 "steering_hold": self.steering_hold, "mirror_average": self.mirror_average,
+                 "speed_scale": self.speed_scale}
         return {name: value for name, value in given.items() if value is not None}
 
 

@@ -31,7 +31,7 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = True) -> None:
     """``--steering-filter``, ``--steering-hold``, ``--mirror-average`` and (with ``speed``)
-    ``--slow-in-curves``: what stands between the network and the controls
+    ``--slow-in-curves`` and ``--speed-scale``: what stands between the network and the controls
     (:class:`clonedrive.network.driving_settings.DrivingSettings`). Each left out takes the
     setting stored in the model file (drive.py's, all off, for a file without them)."""
     parser.add_argument("--steering-filter", type=_steering_filter_s, default=None, metavar="S",
@@ -54,6 +54,10 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                                  "|steering| grows, down to 40%% of the set speed (default: "
                                  "the model's own setting; off for a model without one, as "
                                  "drive.py)")
+        parser.add_argument("--speed-scale", type=_speed_scale, default=None, metavar="K",
+                            help="multiply a speed head's target speed by K before the set "
+                                 "speed caps it (1 = as learned; no effect without a speed "
+                                 "head; default: the model's own setting)")
 
 
 def _steering_filter_s(text: str) -> float:
@@ -69,6 +73,13 @@ def _steering_hold(text: str) -> float:
     from clonedrive.drivers.policy import SteeringFilter
 
     return _checked_float(text, lambda value: SteeringFilter(hold=value))
+
+
+def _speed_scale(text: str) -> float:
+    """``--speed-scale``'s value, refused by argparse (exit 2) outside the settings' range."""
+    from clonedrive.network.driving_settings import check_speed_scale
+
+    return _checked_float(text, check_speed_scale)
 
 
 def _checked_float(text: str, check) -> float:
@@ -121,5 +132,6 @@ def steering_options(args: argparse.Namespace) -> dict:
     given = {"steering_filter_s": getattr(args, "steering_filter", None),
              "steering_hold": getattr(args, "steering_hold", None),
              "mirror_average": getattr(args, "mirror_average", None),
-             "slow_in_curves": getattr(args, "slow_in_curves", None)}
+             "slow_in_curves": getattr(args, "slow_in_curves", None),
+             "speed_scale": getattr(args, "speed_scale", None)}
     return {name: value for name, value in given.items() if value is not None}

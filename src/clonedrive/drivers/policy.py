@@ -28,7 +28,7 @@ import numpy as np
 from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.network.contract import TARGET_SPEED_SCALE_MPH, check_model, has_speed_head
 from clonedrive.network.crop import visible_rows
-from clonedrive.network.driving_settings import DrivingSettings
+from clonedrive.network.driving_settings import DrivingSettings, check_speed_scale
 from clonedrive.network.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 
 if TYPE_CHECKING:
@@ -142,12 +142,14 @@ class NetworkPolicy:
     ``slow_in_curves`` (off by default): the hand-made rule, the target falls as the predicted
     steering grows, ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)``
     (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
-    ``steering_filter_s`` > 0 low-passes the predicted steering and ``steering_hold`` > 0 holds
-    the wheel through jitter smaller than itself (:class:`SteeringFilter`; both off by default,
-    as drive.py). ``mirror_average`` (off by default) predicts on each frame and on its mirror
-    image and averages the two (the mirror's steering negated, its target speed as it is):
-    the part of the network's frame-to-frame noise that the two views do not share cancels,
-    for twice the inference (:func:`mirrored_mean`).
+    ``speed_scale`` multiplies a speed head's target speed before the cap (1 by default: as
+    learned). ``steering_filter_s`` > 0 low-passes the predicted steering and
+    ``steering_hold`` > 0 holds the wheel through jitter smaller than itself
+    (:class:`SteeringFilter`; both off by default, as drive.py). ``mirror_average`` (off by
+    default) predicts on each frame and on its mirror image and averages the two (the
+    mirror's steering negated, its target speed as it is): the part of the network's
+    frame-to-frame noise that the two views do not share cancels, for twice the inference
+    (:func:`mirrored_mean`).
     """
 
     def __init__(
@@ -164,8 +166,10 @@ class NetworkPolicy:
         steering_filter_s: float = 0.0,
         steering_hold: float = 0.0,
         mirror_average: bool = False,
+        speed_scale: float = 1.0,
     ) -> None:
         check_model(model)
+        self.speed_scale = check_speed_scale(speed_scale)
         self.mirror_average = bool(mirror_average)
         self.steering_filter_s = float(steering_filter_s)
         self.steering_hold = float(steering_hold)
@@ -223,14 +227,16 @@ class NetworkPolicy:
                 "slow_in_curves": self.slow_in_curves, "curve_gain": self.curve_gain,
                 "min_speed_fraction": self.min_speed_fraction,
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
-                "mirror_average": self.mirror_average, "batch_size": self.batch_size}
+                "mirror_average": self.mirror_average, "speed_scale": self.speed_scale,
+                "batch_size": self.batch_size}
 
     def driving_settings(self) -> DrivingSettings:
         """What stands between this policy's network and the controls."""
         return DrivingSettings(slow_in_curves=self.slow_in_curves,
                                steering_filter_s=self.steering_filter_s,
                                steering_hold=self.steering_hold,
-                               mirror_average=self.mirror_average)
+                               mirror_average=self.mirror_average,
+                               speed_scale=self.speed_scale)
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to
@@ -258,7 +264,7 @@ class NetworkPolicy:
         floor = self.min_speed_fraction * set_speed
         target = set_speed
         if learned_speed_mph is not None:
-            target = min(max(float(learned_speed_mph), floor), set_speed)
+            target = min(max(float(learned_speed_mph) * self.speed_scale, floor), set_speed)
         if self.slow_in_curves:
             fraction = max(self.min_speed_fraction, 1.0 - self.curve_gain * abs(steering))
             target = min(target, set_speed * fraction)

@@ -119,9 +119,9 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
         "steering_filter_s": policy.steering_filter_s,
         "steering_hold": policy.steering_hold,
         "mirror_average": policy.mirror_average,
+        "speed_scale": policy.speed_scale,
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
-                         + (", target speed learned (speed head), capped by the set speed"
-                            if speed_head else "")
+                         + (_learned_speed_text(policy.speed_scale) if speed_head else "")
                          + (", target speed reduced with |steering|" if slow_in_curves
                             else ""),
         **_rendering(policy, first),
@@ -129,6 +129,11 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
         "runs": [],
         "totals": totals([]),
     }
+
+
+def _learned_speed_text(scale: float) -> str:
+    scaled = f" times {scale:g}" if scale != 1.0 else ""
+    return f", target speed learned (speed head){scaled}, capped by the set speed"
 
 
 def _groups(parts: list[EvalConfig], part_specs: list[list[RunSpec]], workers: int

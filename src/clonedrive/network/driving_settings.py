@@ -45,6 +45,8 @@ class DrivingSettings:
     steering_filter_s: float = 0.0  #: low-pass time constant on the predicted steering [s]
     steering_hold: float = 0.0  #: hold the wheel through steering jitter smaller than this
     mirror_average: bool = False  #: average each frame's prediction with its mirror image's
+    #: a speed head's target speed times this, still capped by the set speed (1: as learned)
+    speed_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("slow_in_curves", "mirror_average"):
@@ -58,6 +60,7 @@ class DrivingSettings:
         if self.steering_hold >= 1.0:
             raise ValueError(f"steering_hold must be below 1 (steering units), got "
                              f"{self.steering_hold}")
+        check_speed_scale(self.speed_scale)
 
     def options(self) -> dict:
         """These settings as NetworkPolicy's keyword arguments."""
@@ -74,6 +77,8 @@ class DrivingSettings:
             parts.append(f"steering low-pass {self.steering_filter_s:g} s")
         if self.slow_in_curves:
             parts.append("slower in curves (the hand-made rule)")
+        if self.speed_scale != 1.0:
+            parts.append(f"learned speed x{self.speed_scale:g}")
         return ", ".join(parts) or "steering straight to the wheel (as drive.py)"
 
     @classmethod
@@ -82,6 +87,19 @@ class DrivingSettings:
         from clonedrive.base.config import config_from_dict
 
         return config_from_dict(cls, values, source=source)
+
+
+#: The range of ``speed_scale``: a calibration of a speed head's target, not a new speed.
+SPEED_SCALE_RANGE = (0.5, 1.5)
+
+
+def check_speed_scale(value: object) -> float:
+    """``value`` as a speed scale; ``ValueError`` unless a number in :data:`SPEED_SCALE_RANGE`."""
+    low, high = SPEED_SCALE_RANGE
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value) or not low <= value <= high:
+        raise ValueError(f"speed_scale must be a number in [{low:g}, {high:g}], got {value!r}")
+    return float(value)
 
 
 def read_notes(path: str | os.PathLike) -> dict:

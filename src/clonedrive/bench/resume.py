@@ -29,9 +29,10 @@ class ResumeError(ValueError):
     """The bench.json to resume from is not one of this run; the message says why."""
 
 
-def previous_report(out: Path, report: dict) -> dict | None:
+def previous_report(out: Path, report: dict, defaults: dict) -> dict | None:
     """The bench.json in ``out`` if it is an earlier run of what ``report`` (the new run's
-    header) describes; None when ``out`` holds none."""
+    header) describes; None when ``out`` holds none. ``defaults``: each setting's default,
+    for a run made before the setting existed."""
     from clonedrive.base.config import read_json
 
     path = out / "bench.json"
@@ -41,24 +42,20 @@ def previous_report(out: Path, report: dict) -> dict | None:
     if not isinstance(previous, dict):
         raise ResumeError(f"{path}: not a bench.json (its top level is not an object)")
     for field in MATCHED_FIELDS:
-        if _comparable(field, previous.get(field)) != _comparable(field, report[field]):
+        if _comparable(field, previous.get(field), defaults) \
+                != _comparable(field, report[field], defaults):
             raise ResumeError(f"{path}: its {field!r} differs from this run's, so its runs "
                               f"are not this run's; give the same models and options as it "
                               f"was made with, or another --out")
     return previous
 
 
-def _comparable(field: str, value: object) -> object:
+def _comparable(field: str, value: object, defaults: dict) -> object:
     """``value`` of bench.json's ``field`` as compared: without the free settings, and with the
     defaults of settings added since the run was made (what that run drove with)."""
-    import dataclasses
-
-    from clonedrive.bench.run import BenchConfig
     from clonedrive.network.driving_settings import DrivingSettings
 
     if field == "settings" and isinstance(value, dict):
-        defaults = {f.name: f.default for f in dataclasses.fields(BenchConfig)
-                    if f.default is not dataclasses.MISSING}
         return {key: item for key, item in {**defaults, **value}.items()
                 if key not in FREE_SETTINGS}
     if field == "driving" and isinstance(value, dict):

@@ -219,11 +219,14 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True,
 
 def _resumed_results(out: Path, report: dict, tasks: list[BatchTask]) -> dict[int, list[dict]]:
     """The finished batches of the earlier run in ``out`` (none if it holds no bench.json)."""
+    import dataclasses
     import sys
 
     from clonedrive.bench.resume import finished_batches, previous_report
 
-    previous = previous_report(out, report)
+    defaults = {f.name: f.default for f in dataclasses.fields(BenchConfig)
+                if f.default is not dataclasses.MISSING}
+    previous = previous_report(out, report, defaults)
     if previous is None:
         print(f"bench: nothing to resume in {out}; starting from the first batch",
               file=sys.stderr)

@@ -112,9 +112,9 @@ class _Images:
 class ImageHandoff:
     """Decoded images handed from one training stage to the next in the same process.
 
-    A stage :meth:`keep`\ s its cache instead of deleting it; the next stage :meth:`take`\ s
-    it when it needs the same images (in the same order) and rows, else it is deleted then.
-    :meth:`close` deletes what is left (a memmap's file too)."""
+    A stage gives it its cache instead of deleting it (:meth:`keep`); the next stage takes it
+    (:meth:`take`) when it needs the same images (in the same order) and rows, else it is
+    deleted then. :meth:`close` deletes what is left (a memmap's file too)."""
 
     def __init__(self) -> None:
         self.cache: ImageCache | None = None

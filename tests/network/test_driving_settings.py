@@ -17,6 +17,7 @@ from clonedrive.network.driving_settings import (
     notes_for,
     read_notes,
     stored_settings,
+    with_defaults,
     write_notes,
 )
 
@@ -108,6 +109,14 @@ def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_p
                                        '"mirror_average": true}}')
     assert load_policy(path).speed_scale == 1.0
     assert load_policy(path, speed_scale=1.1).speed_scale == 1.1
+
+
+def test_a_recorded_run_without_a_later_setting_reads_as_its_default():
+    recorded = {"mirror_average": True, "steering_hold": 0.02}  # before speed_scale existed
+    filled = with_defaults(recorded)
+    assert filled["speed_scale"] == 1.0 and filled["steering_hold"] == 0.02
+    assert DrivingSettings(**filled) == DrivingSettings(mirror_average=True, steering_hold=0.02)
+    assert with_defaults({"speed_scale": 1.05})["speed_scale"] == 1.05
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from clonedrive.bench.run import BENCH_FORMAT, summarize
 from clonedrive.bench.scores import dev_agreement, offline_correlations
-from clonedrive.network.driving_settings import DrivingSettings
+from clonedrive.network.driving_settings import with_defaults
 
 #: What a compacted run keeps: its episode, what its split's figures are pooled from, and its
 #: scores (no traces, no conditions); :func:`clonedrive.bench.scores.split_scores` and
@@ -154,8 +154,7 @@ def _driving(named: Sequence[tuple[str, dict]]) -> dict[str, dict]:
     driving: dict[str, dict] = {}
     for name, report in named:
         for label, given in report.get("driving", {}).items():
-            # A setting added since a run was made is its default there.
-            settings = {**DrivingSettings().options(), **given}
+            settings = with_defaults(given)
             if driving.setdefault(label, settings) != settings:
                 raise MergeError(f"{name}: method {label!r} drives with other settings there "
                                  f"({settings}) than in another run ({driving[label]})")

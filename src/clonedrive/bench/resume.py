@@ -53,14 +53,14 @@ def previous_report(out: Path, report: dict, defaults: dict) -> dict | None:
 def _comparable(field: str, value: object, defaults: dict) -> object:
     """``value`` of bench.json's ``field`` as compared: without the free settings, and with the
     defaults of settings added since the run was made (what that run drove with)."""
-    from clonedrive.network.driving_settings import DrivingSettings
+    from clonedrive.network.driving_settings import with_defaults
 
     if field == "settings" and isinstance(value, dict):
         return {key: item for key, item in {**defaults, **value}.items()
                 if key not in FREE_SETTINGS}
     if field == "driving" and isinstance(value, dict):
-        return {label: {**DrivingSettings().options(), **settings}
-                if isinstance(settings, dict) else settings for label, settings in value.items()}
+        return {label: with_defaults(settings) if isinstance(settings, dict) else settings
+                for label, settings in value.items()}
     return value
 
 

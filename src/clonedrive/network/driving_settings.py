@@ -89,6 +89,12 @@ class DrivingSettings:
         return config_from_dict(cls, values, source=source)
 
 
+def with_defaults(options: dict) -> dict:
+    """A run's recorded driving settings (:meth:`DrivingSettings.options` names) with every
+    setting added since the run was made filled in as its default: what that run drove with."""
+    return {**DrivingSettings().options(), **options}
+
+
 #: The range of ``speed_scale``: a calibration of a speed head's target, not a new speed.
 SPEED_SCALE_RANGE = (0.5, 1.5)
 

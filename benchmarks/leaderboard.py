@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BASELINES = ROOT / "benchmarks" / "leaderboard" / "baselines.toml"
 BOARD = "docs/leaderboard"  #: the repository's leaderboard, relative to ROOT
 DEFAULT_RUNS = "runs/leaderboard"
+ENSEMBLE_SIZE = 3  #: models in an ensemble row's model ({members[0]} to {members[2]})
 
 
 def load_rows() -> tuple[dict, dict[str, dict]]:
@@ -33,9 +34,15 @@ def load_rows() -> tuple[dict, dict[str, dict]]:
     return table, {row["name"]: row for row in table["baseline"]}
 
 
+def members(seed: int) -> tuple[int, ...]:
+    """The ``best`` seeds an ensemble of training seed ``seed`` is made of: seed 0 is the mean
+    of best's seeds 0-2, seed 1 of seeds 3-5, and so on, so no two ensembles share a model."""
+    return tuple(range(ENSEMBLE_SIZE * seed, ENSEMBLE_SIZE * (seed + 1)))
+
+
 def fill(text: str, row: dict, seed: int, runs: str) -> str:
-    return text.format(seed=seed, runs=runs, row=row["name"],
-                       model=row["model"].format(seed=seed, runs=runs))
+    names = {"seed": seed, "runs": runs, "members": members(seed)}
+    return text.format(**names, row=row["name"], model=row["model"].format(**names))
 
 
 def made_by(command: str) -> str:
@@ -57,7 +64,9 @@ def bench_steps(table: dict, row: dict, seed: int, runs: str) -> list[str]:
     data = " ".join(f"--offline-data {made_by(command)}" for command in heldout)
     model = fill(row["model"], row, seed, runs)
     out = f"{runs}/bench/{row['name']}-s{seed}"
-    bench = f"clonedrive bench {row['name']}={model} --suite {table['suite']} {data} --out {out}"
+    drive = f" {row['drive']}" if row.get("drive") else ""
+    bench = (f"clonedrive bench {row['name']}={model} --suite {table['suite']}{drive} {data} "
+             f"--out {out}")
     inputs = [BOARD] if (ROOT / BOARD / "bench.json").is_file() else []
     inputs.append(f"{row['name']}={out}")
     merge = f"clonedrive bench merge {' '.join(inputs)} --compact --out {BOARD}"

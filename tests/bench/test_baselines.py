@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from clonedrive.cli import build_parser
+from clonedrive.commands.model_options import steering_options
 from clonedrive.recipes.book import load_recipe_file
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -86,7 +87,6 @@ def test_a_row_made_today_drives_as_the_boards_models_of_its_method(board, name)
                  if step.startswith("clonedrive bench ") and " merge " not in step)
     args = build_parser().parse_args(shlex.split(bench)[1:])
     today = load_recipe_file("best").driving.options()
-    given = {"steering_filter_s": args.steering_filter}
-    driven = {**today, **{key: value for key, value in given.items() if value is not None}}
+    driven = {**today, **steering_options(args)}
     boards = json.loads((ROOT / "docs" / "leaderboard" / "bench.json").read_text())["driving"]
     assert today != boards[name] and driven == boards[name]

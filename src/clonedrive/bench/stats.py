@@ -73,13 +73,16 @@ def hierarchical_ci(groups: Sequence[Sequence[float]], *, resamples: int = RESAM
     if not kept:
         return {"value": None, "low": None, "high": None, "n": 0}
     rng = np.random.default_rng(seed)
-    spread = np.empty(resamples)
-    for draw in range(resamples):
-        chosen = rng.integers(0, len(kept), size=len(kept))
-        spread[draw] = np.mean([kept[i][rng.integers(0, kept[i].size, kept[i].size)].mean()
-                                for i in chosen])
+    chosen = rng.integers(0, len(kept), size=(resamples, len(kept)))
+    # Each time model i is drawn it gets its own resample of its episodes; all of model i's
+    # resamples are drawn at once, as one array (the loop is over models, not resamples).
+    means = np.empty(chosen.shape)
+    for index, group in enumerate(kept):
+        drawn = chosen == index
+        picks = rng.integers(0, group.size, size=(int(drawn.sum()), group.size))
+        means[drawn] = group[picks].mean(axis=1)
     value = float(np.mean([group.mean() for group in kept]))
-    return _interval(value, spread, sum(group.size for group in kept))
+    return _interval(value, means.mean(axis=1), sum(group.size for group in kept))
 
 
 def _interval(value: float, spread: np.ndarray, n: int) -> dict:

@@ -35,6 +35,17 @@ def test_the_hierarchical_interval_holds_the_spread_between_seeds() -> None:
     assert nested["high"] - nested["low"] > 3 * (pooled["high"] - pooled["low"])
 
 
+def test_the_hierarchical_interval_of_one_model_is_its_episode_bootstrap() -> None:
+    """With one model there is no seed spread: the interval is the episodes' own, up to the
+    resampling noise of two different draws."""
+    episodes = np.random.default_rng(5).normal(0.7, 0.2, 200)
+    nested, plain = stats.hierarchical_ci([episodes]), stats.bootstrap_ci(episodes)
+    assert nested["value"] == plain["value"] and nested["n"] == plain["n"] == 200
+    assert nested["low"] == pytest.approx(plain["low"], abs=0.01)
+    assert nested["high"] == pytest.approx(plain["high"], abs=0.01)
+    assert stats.hierarchical_ci([[None], []])["value"] is None
+
+
 def test_the_pooled_ratio_interval_is_interventions_over_kilometres() -> None:
     interval = stats.ratio_ci([0, 2, 1, 0], [1.0, 1.0, 0.5, 0.5])
     assert interval["value"] == pytest.approx(1.0)

@@ -46,6 +46,17 @@ def test_the_hierarchical_interval_of_one_model_is_its_episode_bootstrap() -> No
     assert stats.hierarchical_ci([[None], []])["value"] is None
 
 
+def test_the_hierarchical_interval_draws_in_bounded_pieces(monkeypatch) -> None:
+    """Drawn a few resamples at a time (bounded memory), the interval is the one-piece draw's."""
+    rng = np.random.default_rng(6)
+    seeds = [rng.normal(0.8, 0.1, 40), rng.normal(0.6, 0.1, 40), rng.normal(0.7, 0.1, 40)]
+    whole = stats.hierarchical_ci(seeds)
+    monkeypatch.setattr(stats, "MAX_DRAWN_VALUES", 100)  # two resamples of 40 at a time
+    pieces = stats.hierarchical_ci(seeds)
+    assert pieces == whole
+    assert whole["low"] < whole["value"] < whole["high"]
+
+
 def test_the_pooled_ratio_interval_is_interventions_over_kilometres() -> None:
     interval = stats.ratio_ci([0, 2, 1, 0], [1.0, 1.0, 0.5, 0.5])
     assert interval["value"] == pytest.approx(1.0)

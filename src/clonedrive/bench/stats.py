@@ -31,6 +31,8 @@ ALPHA = 0.05
 POWER = 0.8
 #: Most label assignments a permutation test over models enumerates exactly (beyond: drawn).
 EXACT_ASSIGNMENTS = 20000
+#: Most resampled values :func:`hierarchical_ci` holds at once (32 MB of indices).
+MAX_DRAWN_VALUES = 4_000_000
 #: Seed of the generator when the caller gives none.
 DEFAULT_SEED = 0
 
@@ -79,10 +81,18 @@ def hierarchical_ci(groups: Sequence[Sequence[float]], *, resamples: int = RESAM
     means = np.empty(chosen.shape)
     for index, group in enumerate(kept):
         drawn = chosen == index
-        picks = rng.integers(0, group.size, size=(int(drawn.sum()), group.size))
-        means[drawn] = group[picks].mean(axis=1)
+        means[drawn] = _resampled_means(group, int(drawn.sum()), rng)
     value = float(np.mean([group.mean() for group in kept]))
     return _interval(value, means.mean(axis=1), sum(group.size for group in kept))
+
+
+def _resampled_means(group: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` means of ``group`` resampled with replacement, drawn at most
+    :data:`MAX_DRAWN_VALUES` values at a time (bounded memory for any number of episodes)."""
+    rows = max(1, MAX_DRAWN_VALUES // group.size)
+    parts = [group[rng.integers(0, group.size, size=(min(rows, count - start), group.size))]
+             .mean(axis=1) for start in range(0, count, rows)]
+    return np.concatenate(parts) if parts else np.empty(0)
 
 
 def _interval(value: float, spread: np.ndarray, n: int) -> dict:

@@ -15,6 +15,7 @@ import pytest
 
 from clonedrive.cli import build_parser
 from clonedrive.commands.model_options import steering_options
+from clonedrive.network.driving_settings import with_defaults
 from clonedrive.recipes.book import load_recipe_file
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,7 +54,8 @@ def test_every_rows_commands_parse_and_follow_the_rows_they_need(board, capsys) 
         assert steps[-1].startswith("clonedrive bench merge") and "--compact" in steps[-1]
     assert board.main(["commands", "center", "--seed", "2", "--runs", "x"]) == 0
     printed = capsys.readouterr().out.splitlines()
-    assert printed[0] == "clonedrive demo --seed 2 --unseen 0 --no-video --out x/best-s2"
+    assert printed[0] == ("clonedrive demo --recipe benchmarks/leaderboard/best-v2.toml --seed 2 "
+                          "--unseen 0 --no-video --out x/best-s2")
     assert '"row": "center"' in printed[-1] and '"ran": 0' in printed[-1]
 
 
@@ -80,13 +82,22 @@ def test_an_ensembles_seeds_are_made_of_models_no_other_seed_uses(board) -> None
 
 @pytest.mark.parametrize("name", ["best", "best-dagger", "ensemble"])
 def test_a_row_made_today_drives_as_the_boards_models_of_its_method(board, name) -> None:
-    # The board's models of these methods were made by recipe best v1; today's recipe adds a
-    # low-pass, which the row's bench options turn off, so a new seed merges as the same method.
+    # The board's models of these methods were made by recipe best v1; the rows train new
+    # seeds with v2 (benchmarks/leaderboard/best-v2.toml, trained as v1), whose low-pass the
+    # row's bench options turn off, so a new seed merges as the same method.
     table, rows = board.load_rows()
     bench = next(step for step in board.bench_steps(table, rows[name], 4, "r")
                  if step.startswith("clonedrive bench ") and " merge " not in step)
     args = build_parser().parse_args(shlex.split(bench)[1:])
-    today = load_recipe_file("best").driving.options()
-    driven = {**today, **steering_options(args)}
+    made_by = {shlex.split(step)[shlex.split(step).index("--recipe") + 1]
+               for step in board.row_steps(table, rows, name, 4, "r")
+               if step.startswith("clonedrive demo ")}
+    assert made_by == {"benchmarks/leaderboard/best-v2.toml"}
+    recipe = load_recipe_file(ROOT / made_by.pop())
+    assert recipe.label() == "best v2"
+    pinned = recipe.driving.options()
+    driven = {**pinned, **steering_options(args)}
     boards = json.loads((ROOT / "docs" / "leaderboard" / "bench.json").read_text())["driving"]
-    assert today != boards[name] and driven == boards[name]
+    assert pinned != with_defaults(boards[name]) and driven == with_defaults(boards[name])
+    # Today's default recipe trains and drives otherwise: its models are another method.
+    assert load_recipe_file("best").version > recipe.version

@@ -30,7 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.01, steering_filter_s=0.05)
+        mirror_average=True, steering_hold=0.01, steering_filter_s=0.05, full_speed_at=0.95)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -55,8 +55,9 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["mirror_average"] is True and header["steering_hold"] == 0.01
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 2}
+    assert header["recipe"] == {"name": "best", "version": 3}
     assert header["speed_scale"] == 1.0
+    assert header["full_speed_at"] == 0.95
     # Options given override the file one by one.
     out = tmp_path / "eval2"
     assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",

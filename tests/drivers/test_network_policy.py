@@ -235,6 +235,34 @@ def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction() -> No
     assert plain.options()["mirror_average"] is False
 
 
+def test_full_speed_at_stretches_the_top_of_the_learned_speed() -> None:
+    from clonedrive.model.architectures import build_model
+
+    model = build_model("fast", seed=5, speed_head=True)
+    learned = NetworkPolicy(model, 30.0)
+    stretched = NetworkPolicy(model, 30.0, full_speed_at=0.9)
+    # A target at or above 0.9 of the set speed drives at the set speed ...
+    assert learned.target_speed_mph(0.0, learned_speed_mph=27.0) == 27.0
+    assert stretched.target_speed_mph(0.0, learned_speed_mph=27.0) == pytest.approx(30.0)
+    assert stretched.target_speed_mph(0.0, learned_speed_mph=29.0) == 30.0  # the cap holds
+    # ... between 0.8 and 0.9 of it linearly (24 -> 24, 25.5 -> 27, 27 -> 30) ...
+    assert stretched.target_speed_mph(0.0, learned_speed_mph=25.5) == pytest.approx(27.0)
+    # ... and braking below 0.8 of it (a tight bend) stays as learned, at any set speed.
+    assert stretched.target_speed_mph(0.0, learned_speed_mph=20.0) == 20.0
+    assert stretched.target_speed_mph(0.0, set_speed_mph=15.0,
+                                      learned_speed_mph=11.0) == 11.0
+    assert stretched.target_speed_mph(0.0, set_speed_mph=15.0,
+                                      learned_speed_mph=13.5) == pytest.approx(15.0)
+    # After the scale: 24.3 x 1.05 = 25.515 -> 24 + 1.515 x 2.
+    both = NetworkPolicy(model, 30.0, speed_scale=1.05, full_speed_at=0.9)
+    assert both.target_speed_mph(0.0, learned_speed_mph=24.3) == pytest.approx(27.03)
+    assert NetworkPolicy(model, **stretched.options()).full_speed_at == 0.9
+    assert stretched.driving_settings().full_speed_at == 0.9
+    for bad in (0.8, 1.2, float("nan")):
+        with pytest.raises(ValueError, match="full_speed_at"):
+            NetworkPolicy(model, full_speed_at=bad)
+
+
 def test_speed_scale_multiplies_the_learned_target_speed_under_the_cap() -> None:
     from clonedrive.model.architectures import build_model
 

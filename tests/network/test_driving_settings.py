@@ -90,7 +90,8 @@ def test_bad_notes_are_refused_naming_the_file(notes, message, tiny_model_path, 
 @pytest.mark.parametrize("values", [{"steering_hold": 1.5}, {"mirror_average": "yes"},
                                     {"steering_filter_s": float("nan")}, {"speed_scale": 0},
                                     {"speed_scale": 2.0}, {"speed_scale": True},
-                                    {"speed_scale": float("inf")}])
+                                    {"speed_scale": float("inf")}, {"full_speed_at": 0.8},
+                                    {"full_speed_at": 1.01}, {"full_speed_at": "0.9"}])
 def test_bad_settings_are_refused(values):
     with pytest.raises(ValueError):
         DrivingSettings(**values)
@@ -100,6 +101,8 @@ def test_describe_names_what_is_on():
     assert "mirror averaging" in CALM.describe() and "hold 0.02" in CALM.describe()
     assert "drive.py" in DrivingSettings().describe()
     assert "learned speed x1.05" in DrivingSettings(speed_scale=1.05).describe()
+    assert "full speed from 0.92 of the set speed" in \
+        DrivingSettings(full_speed_at=0.92).describe()
 
 
 def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_path, tmp_path):
@@ -117,6 +120,7 @@ def test_a_recorded_run_without_a_later_setting_reads_as_its_default():
     assert filled["speed_scale"] == 1.0 and filled["steering_hold"] == 0.02
     assert DrivingSettings(**filled) == DrivingSettings(mirror_average=True, steering_hold=0.02)
     assert with_defaults({"speed_scale": 1.05})["speed_scale"] == 1.05
+    assert with_defaults(recorded)["full_speed_at"] == 1.0  # before full_speed_at existed
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):

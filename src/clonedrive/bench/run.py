@@ -62,6 +62,7 @@ class BenchConfig:
     steering_hold: float | None = None  #: hold the wheel through smaller steering jitter
     mirror_average: bool | None = None  #: average each frame's prediction with its mirror's
     speed_scale: float | None = None  #: a speed head's target speed times this
+    full_speed_at: float | None = None  #: a speed head's targets from this fraction: full speed
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE
@@ -94,7 +95,7 @@ class BenchConfig:
         given = {"slow_in_curves": self.slow_in_curves,
                  "steering_filter_s": self.steering_filter_s,
                  "steering_hold": self.steering_hold, "mirror_average": self.mirror_average,
-                 "speed_scale": self.speed_scale}
+                 "speed_scale": self.speed_scale, "full_speed_at": self.full_speed_at}
         return {name: value for name, value in given.items() if value is not None}
 
 

@@ -31,9 +31,10 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = True) -> None:
     """``--steering-filter``, ``--steering-hold``, ``--mirror-average`` and (with ``speed``)
-    ``--slow-in-curves`` and ``--speed-scale``: what stands between the network and the controls
-    (:class:`clonedrive.network.driving_settings.DrivingSettings`). Each left out takes the
-    setting stored in the model file (drive.py's, all off, for a file without them)."""
+    ``--slow-in-curves``, ``--speed-scale`` and ``--full-speed-at``: what stands between the
+    network and the controls (:class:`clonedrive.network.driving_settings.DrivingSettings`).
+    Each left out takes the setting stored in the model file (drive.py's, all off, for a file
+    without them)."""
     parser.add_argument("--steering-filter", type=_steering_filter_s, default=None, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
                              "(0.1 = the expert's hand; 0 = off, as drive.py; default: the "
@@ -58,6 +59,11 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                             help="multiply a speed head's target speed by K before the set "
                                  "speed caps it (1 = as learned; no effect without a speed "
                                  "head; default: the model's own setting)")
+        parser.add_argument("--full-speed-at", type=_full_speed_at, default=None, metavar="F",
+                            help="drive a speed head's target at or above F times the set "
+                                 "speed at the set speed, and stretch its targets from 0.8 "
+                                 "times the set speed up to match (1 = as learned; default: "
+                                 "the model's own setting)")
 
 
 def _steering_filter_s(text: str) -> float:
@@ -80,6 +86,13 @@ def _speed_scale(text: str) -> float:
     from clonedrive.network.driving_settings import check_speed_scale
 
     return _checked_float(text, check_speed_scale)
+
+
+def _full_speed_at(text: str) -> float:
+    """``--full-speed-at``'s value, refused by argparse (exit 2) outside (0.8, 1]."""
+    from clonedrive.network.driving_settings import check_full_speed_at
+
+    return _checked_float(text, check_full_speed_at)
 
 
 def _checked_float(text: str, check) -> float:
@@ -133,5 +146,6 @@ def steering_options(args: argparse.Namespace) -> dict:
              "steering_hold": getattr(args, "steering_hold", None),
              "mirror_average": getattr(args, "mirror_average", None),
              "slow_in_curves": getattr(args, "slow_in_curves", None),
-             "speed_scale": getattr(args, "speed_scale", None)}
+             "speed_scale": getattr(args, "speed_scale", None),
+             "full_speed_at": getattr(args, "full_speed_at", None)}
     return {name: value for name, value in given.items() if value is not None}

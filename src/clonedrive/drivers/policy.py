@@ -28,7 +28,12 @@ import numpy as np
 from clonedrive.base.udacity_spec import CONTROL_HZ, IMAGE_SHAPE, SET_SPEED_MPH, SPEED_KI, SPEED_KP
 from clonedrive.network.contract import TARGET_SPEED_SCALE_MPH, check_model, has_speed_head
 from clonedrive.network.crop import visible_rows
-from clonedrive.network.driving_settings import DrivingSettings, check_speed_scale
+from clonedrive.network.driving_settings import (
+    STRETCH_FROM,
+    DrivingSettings,
+    check_full_speed_at,
+    check_speed_scale,
+)
 from clonedrive.network.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 
 if TYPE_CHECKING:
@@ -134,6 +139,17 @@ class SteeringFilter:
         return self.steering
 
 
+def stretched_speed(learned_mph: float, set_speed_mph: float, full_speed_at: float) -> float:
+    """A speed head's target ``learned_mph`` with the top of its range stretched: from
+    :data:`~clonedrive.network.driving_settings.STRETCH_FROM` of ``set_speed_mph`` (unchanged)
+    linearly up to ``full_speed_at`` of it (the set speed itself); above, linearly on (the set
+    speed caps it later). ``full_speed_at`` 1: as learned."""
+    start = STRETCH_FROM * set_speed_mph
+    if full_speed_at >= 1.0 or learned_mph <= start:
+        return learned_mph
+    return start + (learned_mph - start) * (1.0 - STRETCH_FROM) / (full_speed_at - STRETCH_FROM)
+
+
 class NetworkPolicy:
     """Steer with a Keras model; hold a target speed with :class:`SpeedController`.
 
@@ -143,7 +159,12 @@ class NetworkPolicy:
     steering grows, ``set_speed_mph * max(min_speed_fraction, 1 - curve_gain * |steering|)``
     (40 % of the set speed at |steering| >= 0.4); with a speed head the lower of the two counts.
     ``speed_scale`` multiplies a speed head's target speed before the cap (1 by default: as
-    learned). ``steering_filter_s`` > 0 low-passes the predicted steering and
+    learned). ``full_speed_at`` < 1 drives a speed head's target at or above that fraction of the
+    set speed at the set speed, and stretches the targets between it and
+    :data:`~clonedrive.network.driving_settings.STRETCH_FROM` of the set speed to match
+    (:func:`stretched_speed`): a speed head predicts a little below the set speed through bends
+    the expert takes at full speed, while its braking for tight bends, below the stretch, stays
+    as learned. ``steering_filter_s`` > 0 low-passes the predicted steering and
     ``steering_hold`` > 0 holds the wheel through jitter smaller than itself
     (:class:`SteeringFilter`; both off by default, as drive.py). ``mirror_average`` (off by
     default) predicts on each frame and on its mirror image and averages the two (the
@@ -167,9 +188,11 @@ class NetworkPolicy:
         steering_hold: float = 0.0,
         mirror_average: bool = False,
         speed_scale: float = 1.0,
+        full_speed_at: float = 1.0,
     ) -> None:
         check_model(model)
         self.speed_scale = check_speed_scale(speed_scale)
+        self.full_speed_at = check_full_speed_at(full_speed_at)
         self.mirror_average = bool(mirror_average)
         self.steering_filter_s = float(steering_filter_s)
         self.steering_hold = float(steering_hold)
@@ -228,7 +251,7 @@ class NetworkPolicy:
                 "min_speed_fraction": self.min_speed_fraction,
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
                 "mirror_average": self.mirror_average, "speed_scale": self.speed_scale,
-                "batch_size": self.batch_size}
+                "full_speed_at": self.full_speed_at, "batch_size": self.batch_size}
 
     def driving_settings(self) -> DrivingSettings:
         """What stands between this policy's network and the controls."""
@@ -236,7 +259,8 @@ class NetworkPolicy:
                                steering_filter_s=self.steering_filter_s,
                                steering_hold=self.steering_hold,
                                mirror_average=self.mirror_average,
-                               speed_scale=self.speed_scale)
+                               speed_scale=self.speed_scale,
+                               full_speed_at=self.full_speed_at)
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to
@@ -264,7 +288,9 @@ class NetworkPolicy:
         floor = self.min_speed_fraction * set_speed
         target = set_speed
         if learned_speed_mph is not None:
-            target = min(max(float(learned_speed_mph) * self.speed_scale, floor), set_speed)
+            learned = stretched_speed(float(learned_speed_mph) * self.speed_scale, set_speed,
+                                      self.full_speed_at)
+            target = min(max(learned, floor), set_speed)
         if self.slow_in_curves:
             fraction = max(self.min_speed_fraction, 1.0 - self.curve_gain * abs(steering))
             target = min(target, set_speed * fraction)

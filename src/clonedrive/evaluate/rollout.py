@@ -120,8 +120,9 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
         "steering_hold": policy.steering_hold,
         "mirror_average": policy.mirror_average,
         "speed_scale": policy.speed_scale,
+        "full_speed_at": policy.full_speed_at,
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
-                         + (_learned_speed_text(policy.speed_scale) if speed_head else "")
+                         + (_learned_speed_text(policy) if speed_head else "")
                          + (", target speed reduced with |steering|" if slow_in_curves
                             else ""),
         **_rendering(policy, first),
@@ -131,8 +132,10 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
     }
 
 
-def _learned_speed_text(scale: float) -> str:
-    scaled = f" times {scale:g}" if scale != 1.0 else ""
+def _learned_speed_text(policy: NetworkPolicy) -> str:
+    scaled = f" times {policy.speed_scale:g}" if policy.speed_scale != 1.0 else ""
+    if policy.full_speed_at != 1.0:
+        scaled += f", full speed from {policy.full_speed_at:g} of the set speed"
     return f", target speed learned (speed head){scaled}, capped by the set speed"
 
 

@@ -47,6 +47,9 @@ class DrivingSettings:
     mirror_average: bool = False  #: average each frame's prediction with its mirror image's
     #: a speed head's target speed times this, still capped by the set speed (1: as learned)
     speed_scale: float = 1.0
+    #: a speed head's target at or above this fraction of the set speed drives at the set
+    #: speed; targets from :data:`STRETCH_FROM` of it up are stretched to match (1: as learned)
+    full_speed_at: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("slow_in_curves", "mirror_average"):
@@ -61,6 +64,7 @@ class DrivingSettings:
             raise ValueError(f"steering_hold must be below 1 (steering units), got "
                              f"{self.steering_hold}")
         check_speed_scale(self.speed_scale)
+        check_full_speed_at(self.full_speed_at)
 
     def options(self) -> dict:
         """These settings as NetworkPolicy's keyword arguments."""
@@ -79,6 +83,8 @@ class DrivingSettings:
             parts.append("slower in curves (the hand-made rule)")
         if self.speed_scale != 1.0:
             parts.append(f"learned speed x{self.speed_scale:g}")
+        if self.full_speed_at != 1.0:
+            parts.append(f"full speed from {self.full_speed_at:g} of the set speed")
         return ", ".join(parts) or "steering straight to the wheel (as drive.py)"
 
     @classmethod
@@ -105,6 +111,21 @@ def check_speed_scale(value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) \
             or not math.isfinite(value) or not low <= value <= high:
         raise ValueError(f"speed_scale must be a number in [{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+#: Where :attr:`DrivingSettings.full_speed_at`'s stretch starts, as a fraction of the set speed:
+#: a speed head's lower targets (its braking for a tight bend) are driven as learned.
+STRETCH_FROM = 0.8
+
+
+def check_full_speed_at(value: object) -> float:
+    """``value`` as ``full_speed_at``; ``ValueError`` unless a number in
+    (:data:`STRETCH_FROM`, 1]."""
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value) or not STRETCH_FROM < value <= 1.0:
+        raise ValueError(f"full_speed_at must be a number above {STRETCH_FROM:g} and at most 1, "
+                         f"got {value!r}")
     return float(value)
 
 

@@ -210,10 +210,17 @@ def test_steering_hold_keeps_the_wheel_through_small_jitter_without_delay() -> N
     assert (again.steering_hold, again.steering_filter_s, again.curve_gain) == (0.02, 0.3, 2.0)
 
 
-def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction() -> None:
+@pytest.fixture(scope="module")
+def speed_head_model():
+    """A small untrained network with a speed head (its policies only read it)."""
     from clonedrive.model.architectures import build_model
 
-    model = build_model("fast", seed=5, speed_head=True)
+    return build_model("fast", seed=5, speed_head=True)
+
+
+def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction(
+        speed_head_model) -> None:
+    model = speed_head_model
     plain = NetworkPolicy(model)
     mirrored = NetworkPolicy(model, mirror_average=True, batch_size=3)
     images = frames(5, 11)
@@ -235,10 +242,8 @@ def test_mirror_average_takes_the_mean_with_the_mirror_images_prediction() -> No
     assert plain.options()["mirror_average"] is False
 
 
-def test_full_speed_at_stretches_the_top_of_the_learned_speed() -> None:
-    from clonedrive.model.architectures import build_model
-
-    model = build_model("fast", seed=5, speed_head=True)
+def test_full_speed_at_stretches_the_top_of_the_learned_speed(speed_head_model) -> None:
+    model = speed_head_model
     learned = NetworkPolicy(model, 30.0)
     stretched = NetworkPolicy(model, 30.0, full_speed_at=0.9)
     # A target at or above 0.9 of the set speed drives at the set speed ...
@@ -263,10 +268,9 @@ def test_full_speed_at_stretches_the_top_of_the_learned_speed() -> None:
             NetworkPolicy(model, full_speed_at=bad)
 
 
-def test_speed_scale_multiplies_the_learned_target_speed_under_the_cap() -> None:
-    from clonedrive.model.architectures import build_model
-
-    model = build_model("fast", seed=5, speed_head=True)
+def test_speed_scale_multiplies_the_learned_target_speed_under_the_cap(
+        speed_head_model) -> None:
+    model = speed_head_model
     learned = NetworkPolicy(model, 30.0)
     faster = NetworkPolicy(model, 30.0, speed_scale=1.05)
     assert learned.target_speed_mph(0.1, learned_speed_mph=20.0) == 20.0

@@ -49,6 +49,8 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                              "network's frame-to-frame noise the two views do not share, for "
                              "twice the inference (default: the model's own setting)")
     if speed:
+        from clonedrive.network.driving_settings import STRETCH_FROM
+
         parser.add_argument("--slow-in-curves", action=argparse.BooleanOptionalAction,
                             default=None,
                             help="the hand-made curve rule: lower the target speed as "
@@ -61,9 +63,9 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                                  "head; default: the model's own setting)")
         parser.add_argument("--full-speed-at", type=_full_speed_at, default=None, metavar="F",
                             help="drive a speed head's target at or above F times the set "
-                                 "speed at the set speed, and stretch its targets from 0.8 "
-                                 "times the set speed up to match (1 = as learned; default: "
-                                 "the model's own setting)")
+                                 f"speed at the set speed, and stretch its targets from "
+                                 f"{STRETCH_FROM:g} times the set speed up to match (1 = as "
+                                 "learned; default: the model's own setting)")
 
 
 def _steering_filter_s(text: str) -> float:
@@ -89,7 +91,7 @@ def _speed_scale(text: str) -> float:
 
 
 def _full_speed_at(text: str) -> float:
-    """``--full-speed-at``'s value, refused by argparse (exit 2) outside (0.8, 1]."""
+    """``--full-speed-at``'s value, refused by argparse (exit 2) outside (STRETCH_FROM, 1]."""
     from clonedrive.network.driving_settings import check_full_speed_at
 
     return _checked_float(text, check_full_speed_at)

@@ -105,13 +105,20 @@ def with_defaults(options: dict) -> dict:
 SPEED_SCALE_RANGE = (0.5, 1.5)
 
 
+def _finite_number(value: object, inside, message: str) -> float:
+    """``value`` as a float; ``ValueError(f"{message}, got {value!r}")`` unless it is a finite
+    number (not a bool) for which ``inside(value)`` holds."""
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value) or not inside(value):
+        raise ValueError(f"{message}, got {value!r}")
+    return float(value)
+
+
 def check_speed_scale(value: object) -> float:
     """``value`` as a speed scale; ``ValueError`` unless a number in :data:`SPEED_SCALE_RANGE`."""
     low, high = SPEED_SCALE_RANGE
-    if isinstance(value, bool) or not isinstance(value, int | float) \
-            or not math.isfinite(value) or not low <= value <= high:
-        raise ValueError(f"speed_scale must be a number in [{low:g}, {high:g}], got {value!r}")
-    return float(value)
+    return _finite_number(value, lambda number: low <= number <= high,
+                          f"speed_scale must be a number in [{low:g}, {high:g}]")
 
 
 #: Where :attr:`DrivingSettings.full_speed_at`'s stretch starts, as a fraction of the set speed:
@@ -122,11 +129,8 @@ STRETCH_FROM = 0.8
 def check_full_speed_at(value: object) -> float:
     """``value`` as ``full_speed_at``; ``ValueError`` unless a number in
     (:data:`STRETCH_FROM`, 1]."""
-    if isinstance(value, bool) or not isinstance(value, int | float) \
-            or not math.isfinite(value) or not STRETCH_FROM < value <= 1.0:
-        raise ValueError(f"full_speed_at must be a number above {STRETCH_FROM:g} and at most 1, "
-                         f"got {value!r}")
-    return float(value)
+    return _finite_number(value, lambda number: STRETCH_FROM < number <= 1.0,
+                          f"full_speed_at must be a number above {STRETCH_FROM:g} and at most 1")
 
 
 def read_notes(path: str | os.PathLike) -> dict:

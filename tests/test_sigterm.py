@@ -121,3 +121,40 @@ def test_a_terminated_train_removes_its_image_cache(tmp_path: Path) -> None:
         err = terminate(process)
     assert process.returncode == 128 + signal.SIGTERM, err
     assert not cache.exists()
+
+
+_LARGE_TASKS = """
+import sys
+from clonedrive.base.interrupts import Terminated, interruptible
+from clonedrive.base.workers import run_tasks
+import holding
+try:
+    with interruptible():
+        run_tasks(holding.hold, [bytes(4 << 20)] * 8, workers=2)  # each far above a pipe's 64 KB
+except Terminated:
+    sys.exit(143)
+"""
+
+
+def test_sigterm_while_large_tasks_wait_for_workers(tmp_path: Path) -> None:
+    """Tasks much larger than a pipe's buffer, more than the workers take: SIGTERM still
+    stops everything at once, and the tasks' temporary files go with it."""
+    started_folder = tmp_path / "started"
+    started_folder.mkdir()
+    (tmp_path / "holding.py").write_text(
+        "import os, time\n\ndef hold(payload):\n"
+        f"    open(os.path.join({str(started_folder)!r}, str(os.getpid())), 'w').close()\n"
+        "    time.sleep(600)\n")
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    env = dict(os.environ, TMPDIR=str(temporary),
+               PYTHONPATH=os.pathsep.join([str(tmp_path), *sys.path]))
+    with started([sys.executable, "-c", _LARGE_TASKS], env) as process:
+        # Both workers hold a task: the other six wait to be sent.
+        assert wait_for(lambda: len(list(started_folder.iterdir())) == 2)
+        workers = spawned_workers(process.pid)
+        err = terminate(process)
+    assert process.returncode == 143, err
+    assert "Traceback" not in err
+    assert wait_for(lambda: not any(alive(pid) for pid in workers))
+    assert list(temporary.iterdir()) == []

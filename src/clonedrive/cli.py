@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 
+from clonedrive.base.allocator import keep_freed_memory
 from clonedrive.base.interrupts import Terminated, interruptible
 
 # (verb, module under clonedrive.commands) in data-flow order.
@@ -118,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.verb is None:
         parser.print_help()
         return 2
+    keep_freed_memory()  # base/allocator.py: a third less CPU time in training
     with interruptible():
         return _run_verb(args)
 

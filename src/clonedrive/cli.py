@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.verb is None:
         parser.print_help()
         return 2
-    keep_freed_memory()  # base/allocator.py: a third less CPU time in training
+    keep_freed_memory()  # base/allocator.py: freed batches stay in the process for the next
     with interruptible():
         return _run_verb(args)
 

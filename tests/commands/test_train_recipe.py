@@ -55,7 +55,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["mirror_average"] is True and header["steering_hold"] == 0.01
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 3}
+    assert header["recipe"] == {"name": "best", "version": 4}
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
     # Options given override the file one by one.

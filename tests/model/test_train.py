@@ -18,6 +18,7 @@ from clonedrive.data.driving_log import read_driving_log
 from clonedrive.model.checkpoints import run_recorder_class
 from clonedrive.model.train import train
 from clonedrive.model.train_config import TrainConfig
+from clonedrive.recipes.book import load_recipe_file
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "udacity"
 OUTPUTS = {
@@ -115,11 +116,15 @@ def test_cli_train_folders_with_block_split(damaged_recordings, tmp_path: Path, 
         "--batch-size", "128", "--split", "blocks", "--no-h5", "--out", str(out), "--json",
     ])
     assert code == 0
+    # --epochs sets the default recipe's first stage; its fine-tune keeps its own epochs.
+    finetune_epochs = load_recipe_file("best").finetune["epochs"]
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert summary["epochs_done"] == 1 and summary["split"] == "blocks"
+    assert summary["epochs_done"] == finetune_epochs and summary["split"] == "blocks"
     assert summary["skipped_rows"] == {"image_missing": 1}
+    base = json.loads((out / "base" / "config.json").read_text(encoding="utf-8"))
+    assert base["split"] == "blocks" and base["model"] == "fast" and base["epochs"] == 1
     config = json.loads((out / "config.json").read_text(encoding="utf-8"))
-    assert config["split"] == "blocks" and config["model"] == "fast" and config["epochs"] == 1
+    assert config["split"] == "blocks" and config["epochs"] == finetune_epochs
     assert not (out / "model.h5").exists() and (out / "model.keras").is_file()
     # Nothing to train on is a clear error, not a traceback.
     assert main(["train", "--out", str(tmp_path / "empty")]) == 1

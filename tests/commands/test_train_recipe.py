@@ -30,7 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.01, steering_filter_s=0.05, full_speed_at=0.95)
+        mirror_average=True, steering_hold=0.005, steering_filter_s=0.05, full_speed_at=0.95)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -52,10 +52,10 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--laps", "1", "--max-seconds", "2", "--no-scenery", "--workers", "1",
                  "--out", str(out), "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is True and header["steering_hold"] == 0.01
+    assert header["mirror_average"] is True and header["steering_hold"] == 0.005
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 4}
+    assert header["recipe"] == {"name": "best", "version": 5}
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
     # Options given override the file one by one.
@@ -64,7 +64,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--max-seconds", "2", "--no-scenery", "--workers", "1", "--out", str(out),
                  "--no-mirror-average", "--slow-in-curves", "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is False and header["steering_hold"] == 0.01
+    assert header["mirror_average"] is False and header["steering_hold"] == 0.005
     assert header["slow_in_curves"] is True
 
 

@@ -60,14 +60,14 @@ def test_writeup_is_todays_demo():
 
 def test_a_copied_and_edited_recipe_is_used(tmp_path):
     text = _text("best").replace('name = "best"', 'name = "mine"').replace(
-        "epochs = 3", "epochs = 2").replace("steering_hold = 0.01", "steering_hold = 0.005")
+        "epochs = 3", "epochs = 2").replace("steering_hold = 0.005", "steering_hold = 0.008")
     path = tmp_path / "mine.toml"
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
-    assert recipe.label() == "mine v4"  # the copy keeps best's version
+    assert recipe.label() == "mine v5"  # the copy keeps best's version
     assert recipe.train_config().epochs == 2
-    assert recipe.driving.steering_hold == 0.005
+    assert recipe.driving.steering_hold == 0.008
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
     assert train.epochs == 3  # the demo's option overrides the file
 
@@ -90,9 +90,9 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
 
 @pytest.mark.parametrize("edit, message", [
     (("[train]", "[train]\nwarp = 9"), "warp"),
-    (("steering_hold = 0.01", "steering_hold = 2.0"), "steering_hold"),
+    (("steering_hold = 0.005", "steering_hold = 2.0"), "steering_hold"),
     (('name = "best"', 'name = ""'), "needs a name"),
-    (("version = 4", "version = 0"), "version"),
+    (("version = 5", "version = 0"), "version"),
     (("laps = 3", "laps = 0"), "laps"),
     (('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
     (("correction = 0.054", "correction = 7"), "correction"),

@@ -58,6 +58,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["recipe"] == {"name": "best", "version": 5}
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
+    assert "full speed from 0.95 of the set speed" in header["speed_control"]
     # Options given override the file one by one.
     out = tmp_path / "eval2"
     assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",

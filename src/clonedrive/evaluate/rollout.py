@@ -40,6 +40,7 @@ from clonedrive.episode.runner import Episode, Runner, Step
 from clonedrive.evaluate.config import EvalConfig, RunSpec, run_specs
 from clonedrive.evaluate.reference import against_expert
 from clonedrive.evaluate.results import totals
+from clonedrive.network.driving_settings import full_speed_text
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
@@ -135,7 +136,7 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
 def _learned_speed_text(policy: NetworkPolicy) -> str:
     scaled = f" times {policy.speed_scale:g}" if policy.speed_scale != 1.0 else ""
     if policy.full_speed_at != 1.0:
-        scaled += f", full speed from {policy.full_speed_at:g} of the set speed"
+        scaled += f", {full_speed_text(policy.full_speed_at)}"
     return f", target speed learned (speed head){scaled}, capped by the set speed"
 
 

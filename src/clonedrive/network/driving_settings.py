@@ -36,6 +36,11 @@ H5_ATTRIBUTE = "clonedrive"
 MAX_NOTES_BYTES = 65_536
 
 
+def full_speed_text(full_speed_at: float) -> str:
+    """How eval.json and :meth:`DrivingSettings.describe` name the ``full_speed_at`` setting."""
+    return f"full speed from {full_speed_at:g} of the set speed"
+
+
 @dataclass(frozen=True)
 class DrivingSettings:
     """What stands between the network's prediction and the controls (defaults: drive.py)."""
@@ -84,7 +89,7 @@ class DrivingSettings:
         if self.speed_scale != 1.0:
             parts.append(f"learned speed x{self.speed_scale:g}")
         if self.full_speed_at != 1.0:
-            parts.append(f"full speed from {self.full_speed_at:g} of the set speed")
+            parts.append(full_speed_text(self.full_speed_at))
         return ", ".join(parts) or "steering straight to the wheel (as drive.py)"
 
     @classmethod

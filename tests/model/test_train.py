@@ -180,3 +180,36 @@ def test_a_missing_input_is_named_before_keras_loads(tmp_path: Path) -> None:
         assert done.returncode == 1, done.stderr
         assert done.stderr.startswith(f"clonedrive train: {says}")
     assert not (tmp_path / "r").exists()
+
+
+def test_the_shift_augmentations_steering_gain_comes_from_the_config(
+    damaged_recordings, tmp_path: Path
+) -> None:
+    from clonedrive.data.dataset import build_dataset
+    from clonedrive.data.recipe import default_recipe_for
+    from clonedrive.model.architectures import build_model
+    from clonedrive.model.train import _batches
+
+    recipe = default_recipe_for(damaged_recordings)
+    model = build_model("fast", seed=0)
+
+    def label_sizes(gain: float) -> tuple[np.ndarray, np.ndarray]:
+        """(|training labels| of the first batch, |its samples' own labels|)."""
+        config = dataclasses.replace(FAST, shift_steering_per_px=gain)
+        data = build_dataset(recipe, config.dataset_config(), tmp_path / f"run{gain}",
+                             progress=False)
+        try:
+            train_batches, _ = _batches(config, data, model, 0)
+            _, labels = train_batches[0]
+            own = data.train.steering[train_batches.batch_indices(0)]
+            return np.abs(labels), np.abs(own)
+        finally:
+            data.close()
+
+    labels, own = label_sizes(0.0)  # no gain: a shifted picture keeps its label (or its mirror)
+    np.testing.assert_allclose(labels, own, atol=1e-6)
+    labels, own = label_sizes(0.004)
+    assert np.mean(np.abs(labels - own) > 1e-3) > 0.5  # most labels moved with their shift
+
+    with pytest.raises(ValueError, match=r"shift_steering_per_px must be in \[0, 0.02\]"):
+        dataclasses.replace(FAST, shift_steering_per_px=float("nan"))

@@ -82,6 +82,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep every sample (no steering histogram balancing)")
     parser.add_argument("--no-augment", dest="augment", action="store_false", default=given,
                         help="no training augmentation")
+    parser.add_argument("--shift-steering", dest="shift_steering_per_px", type=float,
+                        default=given, metavar="S",
+                        help=f"label change per pixel of the augmentation's horizontal shift "
+                             f"({r} {d.shift_steering_per_px:g}); a shift of the picture "
+                             "looks like a heading error, so S sets the heading gain the "
+                             "network learns")
     parser.add_argument("--early-stopping", dest="early_stopping_patience",
                         type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")

@@ -7,6 +7,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from clonedrive.data.augment import STEERING_PER_PX
 from clonedrive.data.balance import DEFAULT_BINS
 from clonedrive.data.dataset import DatasetConfig
 from clonedrive.data.recipe import CORRECTION_RANGE, DEFAULT_CORRECTION
@@ -15,6 +16,9 @@ from clonedrive.network.crop import CROP_TOP_PX
 
 #: The largest learning rate training accepts: above it Adam only diverges.
 MAX_LEARNING_RATE = 1.0
+#: The largest steering change per pixel of the shift augmentation: at it the largest shift
+#: (40 px) moves a label by 0.8, most of the wheel's range.
+MAX_SHIFT_STEERING_PER_PX = 0.02
 #: The largest count each setting takes, from the command line or a recipe file alike: a
 #: batch, a worker pool or a history is sized from them before training starts.
 MAX_COUNTS = {"epochs": 10_000, "batch_size": 65_536, "early_stopping_patience": 10_000,
@@ -37,6 +41,7 @@ class TrainConfig:
     val_fraction: float = 0.2
     block_s: float = DEFAULT_BLOCK_S  # block length of the "blocks" split, seconds
     augment: bool = True  # training-only augmentation (see data.augment)
+    shift_steering_per_px: float = STEERING_PER_PX  # label change per pixel of augment's shift
     seed: int = 0
     early_stopping_patience: int | None = None  # stop after this many epochs without a best
     dropout: float = 0.0  # 0 = off
@@ -66,6 +71,9 @@ class TrainConfig:
         if not 0 < self.learning_rate <= MAX_LEARNING_RATE:  # also NaN and infinity
             raise ValueError(f"learning_rate must be in (0, {MAX_LEARNING_RATE:g}], got "
                              f"{self.learning_rate}")
+        if not 0.0 <= self.shift_steering_per_px <= MAX_SHIFT_STEERING_PER_PX:  # also NaN
+            raise ValueError(f"shift_steering_per_px must be in [0, "
+                             f"{MAX_SHIFT_STEERING_PER_PX:g}], got {self.shift_steering_per_px}")
         if not 0.0 <= self.dropout < 1.0:  # also NaN
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:

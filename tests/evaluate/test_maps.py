@@ -85,3 +85,26 @@ def test_the_colour_scale_fits_the_run(tmp_path):
     changed = np.abs(calm - flat).max(axis=2) > 60
     assert changed.sum() > 500
     assert len({tuple(colour) for colour in calm[changed] // 48}) >= 4
+
+
+def test_the_direction_arrows_stay_on_the_road_and_point_along_it():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+    from matplotlib.text import Annotation
+
+    for name in ("mountain", "lake"):
+        track = load_track(name)
+        axes = Figure().add_subplot()
+        maps.draw_track(axes, track, elevation=False)
+        arrows = [a for a in axes.texts if isinstance(a, Annotation) and a.arrow_patch]
+        assert len(arrows) == 11
+        for arrow in arrows:
+            start, end = np.array(arrow.xyann), np.array(arrow.xy)
+            line = start + np.linspace(0.0, 1.0, 20)[:, None] * (end - start)
+            where = track.project(line)
+            assert np.all(np.abs(where.cte_m) < where.half_width_m), name
+            # Along the driving direction: the road's arc length grows from tail to head.
+            ahead = (where.s_m[-1] - where.s_m[0]) % track.length_m
+            assert 0 < ahead < track.length_m / 2, name

@@ -314,3 +314,28 @@ def test_a_recipe_name_cannot_inject_markup(tmp_path: Path, run_dir) -> None:
                                                          "version": 1}}), encoding="utf-8")
     html = write_report(folder).html_path.read_text(encoding="utf-8")
     assert "<script>x" not in html
+
+
+def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path) -> None:
+    from clonedrive.model.train import train
+    from clonedrive.model.train_config import TrainConfig
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("train"))
+    shutil.copytree(run_dir / "train", run / "train" / "base")  # the first stage
+    # The second stage: one epoch from the first stage's model, as recipes.training runs it.
+    train(TrainConfig(model="fast", epochs=1, batch_size=64, export_h5=False, consistency=5.0,
+                      init_from=str(run / "train" / "base" / "model.keras")),
+          [run / "data" / "lake_left", run / "data" / "udacity_lake"], run / "train",
+          progress=False)
+    result = write_report(run, tmp_path / "report")
+    training = _section(result.markdown_path.read_text(encoding="utf-8"),
+                        SECTION_TITLES["training"])
+    epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
+    assert [row[0] for row in epochs] == ["1 (base)", "2 (fine-tune)"]
+    assert [row[-1] for row in epochs] == ["", "best"]  # model.keras is the fine-tune's
+    assert "the epochs of both stages in a row" in training
+    # Training's own loss.png holds the second stage only; the report plots both.
+    plotted = tmp_path / "report" / "report" / "loss.png"
+    assert plotted.is_file()
+    assert plotted.read_bytes() != (run / "train" / "loss.png").read_bytes()

@@ -56,11 +56,10 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     # Direction arrows every ~1/12 of the lap, and what they are.
     ax.text(0.01, 0.01, "blue arrows: driving direction", transform=ax.transAxes, fontsize=8,
             color="tab:blue", va="bottom", zorder=6)
-    for s in np.linspace(0, track.length_m, 12, endpoint=False)[1:]:
-        x, y, _ = track.point(s)
-        heading = float(track.heading_at(s))
-        size = max(track.length_m / 35, 12.0)
-        ax.annotate("", xy=(x + size * np.cos(heading), y + size * np.sin(heading)), xytext=(x, y),
+    size = max(track.length_m / 35, 12.0)
+    for s in _arrow_places(track, size):
+        (x, y, _), (x1, y1, _) = track.point(s), track.point(s + size)
+        ax.annotate("", xy=(x1, y1), xytext=(x, y),
                     arrowprops={"arrowstyle": "-|>", "color": "tab:blue", "lw": 1.5}, zorder=4)
     # Start line across the road.
     x0, y0, _ = track.point(0.0)
@@ -71,6 +70,20 @@ def draw_track(ax, track: Track, *, elevation: bool = True) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x (east) [m]")
     ax.set_ylabel("y (north) [m]")
+
+
+def _arrow_places(track: Track, size: float, count: int = 12) -> list[float]:
+    """Where the direction arrows start [m along the road]: about every ``1/count`` of the lap
+    (not at the start line), each moved to where the road bends least over the arrow's
+    ``size`` metres, so an arrow drawn from there to ``size`` metres on stays on the road."""
+    spacing = track.length_m / count
+    places = []
+    for middle in np.linspace(0, track.length_m, count, endpoint=False)[1:]:
+        candidates = middle + np.linspace(-spacing / 3, spacing / 3, 9)
+        along = candidates[:, None] + np.linspace(0.0, size, 8)[None, :]
+        bend = np.abs(track.curvature(along)).max(axis=1)
+        places.append(float(candidates[np.argmin(bend)]))
+    return places
 
 
 #: Tops [m] the |CTE| colour scale may have; a run's scale takes the first at or above its

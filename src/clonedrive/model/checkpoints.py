@@ -113,10 +113,12 @@ def save_model_atomic(model, path: Path, notes: dict | None = None) -> None:
             write_notes(temporary, notes)
 
 
-def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool = False
-              ) -> Path:
+def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool = False,
+              second_stage_from: int | None = None) -> Path:
     """Training and validation loss per epoch as a PNG (matplotlib Agg), atomically; the axis
-    names what the loss holds (``consistency``: the run trained with that penalty)."""
+    names what the loss holds (``consistency``: the run trained with that penalty).
+    ``second_stage_from``: the epoch where a second training stage (a fine-tune) starts, marked
+    by a dashed line."""
     import textwrap
 
     import matplotlib
@@ -133,10 +135,16 @@ def plot_loss(history: list[dict], path: str | os.PathLike, *, consistency: bool
     axes.plot(epochs, [row["val_loss"] for row in history], "s-", label="validation loss")
     axes.set_xlabel("epoch")
     speed = bool(history) and "speed_mse" in history[0]
-    terms = ["steering MSE"] + (["consistency"] if consistency else []) + (
+    penalty = "consistency" if second_stage_from is None else "the fine-tune's consistency"
+    terms = ["steering MSE"] + ([penalty] if consistency else []) + (
         ["speed MSE", "L2"] if speed else ["any L2 penalty"])
     axes.set_ylabel(textwrap.fill(f"loss ({' + '.join(terms)})", 40))  # fits the axis
     axes.set_title("training and validation loss")
+    if second_stage_from is not None:
+        axes.axvline(second_stage_from - 0.5, color="grey", linestyle="--", linewidth=1)
+        axes.annotate("fine-tune", (second_stage_from - 0.5, 1.0),
+                      xycoords=("data", "axes fraction"), xytext=(4, -14),
+                      textcoords="offset points", color="grey")
     axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.grid(True, alpha=0.3)
     axes.legend()

@@ -55,10 +55,11 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(ctx.note(f"No `config.json` in `{train}`: settings unknown."))
     section.blocks.append(Paragraph(_split_text(kind, split.get("description"))))
 
+    base_history = _base_stage_history(train)
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        base = _base_stage_epochs(train)
+        base = len(base_history)
         stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
                   f"{fmt.plural(len(history), 'epoch')}" if base
                   else fmt.plural(len(history), 'epoch'))
@@ -68,35 +69,27 @@ def build(ctx: ReportContext) -> list[Section]:
         if base:
             section.blocks.append(Paragraph(
                 f"Training ran in two stages (the recipe's `[finetune]`): {base} epoch(s) into "
-                "`base/`, then the settings above from that stage's best model; the table is "
-                "the second stage's."))
+                "`base/`, then the settings above from that stage's best model. The table and "
+                "the plot number the epochs of both stages in a row."))
         columns = [c for c in ("loss", "val_loss", "mse", "val_mse", "seconds")
-                   if any(c in row for row in history)]
+                   if any(c in row for row in base_history + history)]
         headers = ("epoch", *[{"loss": "training loss", "val_loss": "validation loss",
                                "mse": "training MSE", "val_mse": "validation MSE",
                                "seconds": "seconds"}[c] for c in columns], "")
         table_rows = tuple(
-            (str(row["epoch"]),
+            (str(number) + ("" if not base else " (base)" if number <= base else " (fine-tune)"),
              *[fmt.num(row.get(c), 1 if c == "seconds" else 4) for c in columns],
              "best" if row is best else "")
-            for row in history)
+            for number, row in enumerate(base_history + history, start=1))
+        whose = "the fine-tune's epoch" if base else "the epoch"
         section.blocks.append(Paragraph(
             "Loss per epoch (training loss is measured on augmented pictures while the "
             "weights change, validation loss on untouched pictures after the epoch; "
-            "`model.keras` is the epoch with the lowest validation loss):"))
+            f"`model.keras` is {whose} with the lowest validation loss):"))
         section.blocks.append(Table(headers, table_rows, align="l" + "r" * len(columns) + "l"))
     else:
         section.blocks.append(ctx.note(f"No `history.csv` in `{train}`: no loss table."))
-    loss_png = ctx.run_file(train, "loss.png")
-    if loss_png is not None:
-        figure_path = copy_figure(loss_png, ctx.figures_dir, "loss.png")
-    elif history:
-        from clonedrive.model.checkpoints import plot_loss
-
-        figure_path = plot_loss(history, ctx.figures_dir / "loss.png",
-                                consistency=bool((settings or {}).get("consistency")))
-    else:
-        figure_path = None
+    figure_path = _loss_figure(ctx, train, base_history, history, settings)
     if figure_path is not None:
         section.blocks.append(Figure(figure_path, "Training and validation loss per epoch."))
     return [section]
@@ -122,14 +115,29 @@ def _split_text(kind: str | None, description: str | None) -> str:
     return text
 
 
-def _base_stage_epochs(train) -> int:
-    """Epochs of a first training stage in ``TRAIN/base/`` (recipes.training), 0 if none."""
-    from clonedrive.model.history import HISTORY_NAME, read_history
+def _loss_figure(ctx: ReportContext, train, base_history: list[dict], history: list[dict],
+                 settings: dict | None):
+    """The loss plot: training's own ``loss.png`` for one stage; for two, a plot of both
+    stages' epochs in a row (training's plot holds the second stage only); None without a
+    history."""
+    loss_png = ctx.run_file(train, "loss.png")
+    if loss_png is not None and not (base_history and history):
+        return copy_figure(loss_png, ctx.figures_dir, "loss.png")
+    if not history:
+        return None
+    from clonedrive.model.checkpoints import plot_loss
 
-    path = train / "base" / HISTORY_NAME
-    if not path.is_file():
-        return 0
+    rows = [{**row, "epoch": number}
+            for number, row in enumerate(base_history + history, start=1)]
+    return plot_loss(rows, ctx.figures_dir / "loss.png",
+                     consistency=bool((settings or {}).get("consistency")),
+                     second_stage_from=len(base_history) + 1 if base_history else None)
+
+
+def _base_stage_history(train) -> list[dict]:
+    """The epochs of a first training stage in ``TRAIN/base/`` (recipes.training), [] if
+    none or unreadable."""
     try:
-        return len(read_history(path))
+        return read_history(train / "base" / HISTORY_NAME)
     except (OSError, ValueError):
-        return 0
+        return []

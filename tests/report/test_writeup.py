@@ -335,6 +335,7 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     assert [row[0] for row in epochs] == ["1 (base)", "2 (fine-tune)"]
     assert [row[-1] for row in epochs] == ["", "best"]  # model.keras is the fine-tune's
     assert "the epochs of both stages in a row" in training
+    assert "at epoch 2 (random split)" in result.markdown_path.read_text(encoding="utf-8")
     # Training's own loss.png holds the second stage only; the report plots both.
     plotted = tmp_path / "report" / "report" / "loss.png"
     assert plotted.is_file()

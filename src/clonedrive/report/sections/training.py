@@ -59,13 +59,14 @@ def build(ctx: ReportContext) -> list[Section]:
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        base = len(base_history)
+        base, offset = len(base_history), _last_epoch(base_history)
         stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
                   f"{fmt.plural(len(history), 'epoch')}" if base
                   else fmt.plural(len(history), 'epoch'))
         ctx.headline(
             f"Training: {stages}, best validation loss "
-            f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
+            f"{fmt.num(best.get('val_loss'), 4)} at epoch {offset + best['epoch']} ({kind} "
+            "split).")
         if base:
             section.blocks.append(Paragraph(
                 f"Training ran in two stages (the recipe's `[finetune]`): {base} epoch(s) into "
@@ -77,10 +78,11 @@ def build(ctx: ReportContext) -> list[Section]:
                                "mse": "training MSE", "val_mse": "validation MSE",
                                "seconds": "seconds"}[c] for c in columns], "")
         table_rows = tuple(
-            (str(number) + ("" if not base else " (base)" if number <= base else " (fine-tune)"),
-             *[fmt.num(row.get(c), 1 if c == "seconds" else 4) for c in columns],
-             "best" if row is best else "")
-            for number, row in enumerate(base_history + history, start=1))
+            (f"{row['epoch']} (base)", *[_cell(row, c) for c in columns], "")
+            for row in base_history) + tuple(
+            (str(offset + row["epoch"]) + (" (fine-tune)" if base else ""),
+             *[_cell(row, c) for c in columns], "best" if row is best else "")
+            for row in history)
         whose = "the fine-tune's epoch" if base else "the epoch"
         section.blocks.append(Paragraph(
             "Loss per epoch (training loss is measured on augmented pictures while the "
@@ -127,11 +129,21 @@ def _loss_figure(ctx: ReportContext, train, base_history: list[dict], history: l
         return None
     from clonedrive.model.checkpoints import plot_loss
 
-    rows = [{**row, "epoch": number}
-            for number, row in enumerate(base_history + history, start=1)]
+    offset = _last_epoch(base_history)
+    rows = base_history + [{**row, "epoch": offset + row["epoch"]} for row in history]
     return plot_loss(rows, ctx.figures_dir / "loss.png",
                      consistency=bool((settings or {}).get("consistency")),
-                     second_stage_from=len(base_history) + 1 if base_history else None)
+                     second_stage_from=offset + history[0]["epoch"] if base_history else None)
+
+
+def _last_epoch(history: list[dict]) -> int:
+    """The last epoch of a (first stage's) history, 0 if none: the second stage's epochs are
+    numbered on from it."""
+    return max((row["epoch"] for row in history), default=0)
+
+
+def _cell(row: dict, column: str) -> str:
+    return fmt.num(row.get(column), 1 if column == "seconds" else 4)
 
 
 def _base_stage_history(train) -> list[dict]:

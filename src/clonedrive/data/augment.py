@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 #: Steering change per pixel of horizontal shift ([-1, 1] units per pixel).
@@ -109,6 +108,8 @@ def shade(
     table per image (OpenCV ``LUT``), which is several times faster than float arithmetic.
     With ``rows`` = ``(first, end)`` only those rows are computed (the others are 0).
     """
+    import cv2  # here, not at import: training settings read STEERING_PER_PX at start-up
+
     count, height, width = images.shape[:3]
     first, end = _row_window(rows, height)
     out = np.empty_like(images) if (first, end) == (0, height) else np.zeros_like(images)

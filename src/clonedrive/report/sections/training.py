@@ -56,17 +56,17 @@ def build(ctx: ReportContext) -> list[Section]:
     section.blocks.append(Paragraph(_split_text(kind, split.get("description"))))
 
     base_history = _base_stage_history(train)
+    history = _numbered_on(base_history, history)  # one numbering for headline, table and plot
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        base, offset = len(base_history), _last_epoch(base_history)
+        base = len(base_history)
         stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
                   f"{fmt.plural(len(history), 'epoch')}" if base
                   else fmt.plural(len(history), 'epoch'))
         ctx.headline(
             f"Training: {stages}, best validation loss "
-            f"{fmt.num(best.get('val_loss'), 4)} at epoch {offset + best['epoch']} ({kind} "
-            "split).")
+            f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
         if base:
             section.blocks.append(Paragraph(
                 f"Training ran in two stages (the recipe's `[finetune]`): {base} epoch(s) into "
@@ -80,7 +80,7 @@ def build(ctx: ReportContext) -> list[Section]:
         table_rows = tuple(
             (f"{row['epoch']} (base)", *[_cell(row, c) for c in columns], "")
             for row in base_history) + tuple(
-            (str(offset + row["epoch"]) + (" (fine-tune)" if base else ""),
+            (str(row["epoch"]) + (" (fine-tune)" if base else ""),
              *[_cell(row, c) for c in columns], "best" if row is best else "")
             for row in history)
         whose = "the fine-tune's epoch" if base else "the epoch"
@@ -129,17 +129,16 @@ def _loss_figure(ctx: ReportContext, train, base_history: list[dict], history: l
         return None
     from clonedrive.model.checkpoints import plot_loss
 
-    offset = _last_epoch(base_history)
-    rows = base_history + [{**row, "epoch": offset + row["epoch"]} for row in history]
-    return plot_loss(rows, ctx.figures_dir / "loss.png",
+    return plot_loss(base_history + history, ctx.figures_dir / "loss.png",
                      consistency=bool((settings or {}).get("consistency")),
-                     second_stage_from=offset + history[0]["epoch"] if base_history else None)
+                     second_stage_from=history[0]["epoch"] if base_history else None)
 
 
-def _last_epoch(history: list[dict]) -> int:
-    """The last epoch of a (first stage's) history, 0 if none: the second stage's epochs are
-    numbered on from it."""
-    return max((row["epoch"] for row in history), default=0)
+def _numbered_on(base_history: list[dict], history: list[dict]) -> list[dict]:
+    """``history`` (the last stage's epochs) numbered on from the first stage's last epoch:
+    unchanged without a first stage."""
+    offset = max((row["epoch"] for row in base_history), default=0)
+    return [{**row, "epoch": offset + row["epoch"]} for row in history] if offset else history
 
 
 def _cell(row: dict, column: str) -> str:

@@ -138,11 +138,13 @@ def test_every_model_task_carries_the_policy_options_and_the_workers_drive_with_
     suite_path.write_text(SUITE, encoding="utf-8")
     config = BenchConfig(models=(tiny_models[0],), suite=str(suite_path), batch=2,
                          max_seconds=4.0, scenery=False, steering_hold=0.3,
-                         steering_filter_s=0.1, slow_in_curves=True, mirror_average=True)
+                         steering_filter_s=0.1, slow_in_curves=True, mirror_average=True,
+                         steering_scale_from_mph=10.0)
     tasks, _ = plan_tasks(load_suite(config.suite), config)
     models = [task for task in tasks if task.kind == "model"]
     policy = load_policy(tiny_models[0], **config.policy_options())
     assert policy.mirror_average and policy.steering_hold == 0.3
+    assert policy.steering_scale_from_mph == 10.0
     for task in models:  # named as NetworkPolicy names them, so it drives the same way
         options = task.policy_options
         assert set(options) <= set(policy.options())
@@ -162,10 +164,11 @@ def test_the_bench_command_drives_with_the_steering_options(tmp_path, tiny_model
     assert main(["bench", tiny_models[0], "--suite", str(suite_path), "--split", "a",
                  "--max-seconds", "2", "--no-scenery", "--workers", "1", "--out", str(out),
                  "--steering-hold", "0.3", "--steering-filter", "0.1",
-                 "--mirror-average"]) == 0
+                 "--mirror-average", "--steering-scale-from", "12"]) == 0
     settings = json.loads((out / "bench.json").read_text(encoding="utf-8"))["settings"]
     assert (settings["steering_hold"], settings["steering_filter_s"],
-            settings["mirror_average"]) == (0.3, 0.1, True)
+            settings["mirror_average"], settings["steering_scale_from_mph"]) == (0.3, 0.1, True,
+                                                                                  12.0)
     # --resume with other options: one line naming the file and the field, nothing changed.
     before = (out / "bench.json").read_bytes()
     assert main(["bench", tiny_models[0], "--suite", str(suite_path), "--split", "a",

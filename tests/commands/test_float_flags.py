@@ -56,7 +56,9 @@ def test_dagger_refuses_what_cannot_train(tmp_path: Path, flag: str, value: str,
                                              ("--speed-scale", "3"),
                                              ("--speed-scale", "nan"),
                                              ("--full-speed-at", "0.5"),
-                                             ("--full-speed-at", "nan")])
+                                             ("--full-speed-at", "nan"),
+                                             ("--steering-scale-from", "3"),
+                                             ("--steering-scale-from", "nan")])
 def test_the_steering_options_are_refused_as_flags(tmp_path: Path, tiny_model_path: Path,
                                                    flag: str, value: str) -> None:
     result = run_clonedrive("evaluate", tiny_model_path, "--out", tmp_path / "e", flag, value)

@@ -210,6 +210,34 @@ def test_steering_hold_keeps_the_wheel_through_small_jitter_without_delay() -> N
     assert (again.steering_hold, again.steering_filter_s, again.curve_gain) == (0.02, 0.3, 2.0)
 
 
+def test_steering_scale_from_turns_the_car_no_faster_than_at_that_speed() -> None:
+    from clonedrive.drivers.policy import SteeringFilter
+
+    wheel = SteeringFilter(scale_from_mph=24.0)
+    assert wheel.update(0.5, speed_mph=15.0) == 0.5  # below: as predicted
+    assert wheel.update(0.5, speed_mph=24.0) == 0.5
+    assert wheel.update(0.5, speed_mph=30.0) == pytest.approx(0.4)  # 24 / 30
+    assert wheel.update(-0.3, speed_mph=48.0) == pytest.approx(-0.15)
+    # The car's speed times its turn rate per unit of steering stays at 24 mph's.
+    for speed in (30.0, 40.0, 60.0):
+        assert wheel.update(1.0, speed_mph=speed) * speed == pytest.approx(24.0)
+    # No speed, or one that is not a number: not scaled.
+    assert wheel.update(0.5) == 0.5 and wheel.update(0.5, speed_mph=float("nan")) == 0.5
+    # Off by default and at 0, as drive.py.
+    assert SteeringFilter().update(0.5, speed_mph=80.0) == 0.5
+    # Scaled before the low-pass and the hold: the hold acts on the scaled prediction.
+    combined = SteeringFilter(hold=0.05, scale_from_mph=20.0)
+    assert combined.update(0.5, speed_mph=40.0) == pytest.approx(0.25)
+    assert combined.update(0.55, speed_mph=40.0) == pytest.approx(0.25)  # 0.275: held
+    for bad in (-1.0, 2.0, 101.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="steering_scale_from_mph"):
+            SteeringFilter(scale_from_mph=bad)
+    policy = NetworkPolicy(constant_model(0.5), steering_scale_from_mph=20.0)
+    assert policy.act(np.zeros((160, 320, 3), np.uint8), 40.0)[0] == pytest.approx(0.25)
+    assert NetworkPolicy(constant_model(0.5), **policy.options()).steering_scale_from_mph == 20.0
+    assert policy.driving_settings().steering_scale_from_mph == 20.0
+
+
 @pytest.fixture(scope="module")
 def speed_head_model():
     """A small untrained network with a speed head (its policies only read it)."""

@@ -91,7 +91,10 @@ def test_bad_notes_are_refused_naming_the_file(notes, message, tiny_model_path, 
                                     {"steering_filter_s": float("nan")}, {"speed_scale": 0},
                                     {"speed_scale": 2.0}, {"speed_scale": True},
                                     {"speed_scale": float("inf")}, {"full_speed_at": 0.8},
-                                    {"full_speed_at": 1.01}, {"full_speed_at": "0.9"}])
+                                    {"full_speed_at": 1.01}, {"full_speed_at": "0.9"},
+                                    {"steering_scale_from_mph": 3.0},
+                                    {"steering_scale_from_mph": -24.0},
+                                    {"steering_scale_from_mph": float("nan")}])
 def test_bad_settings_are_refused(values):
     with pytest.raises(ValueError):
         DrivingSettings(**values)
@@ -103,6 +106,8 @@ def test_describe_names_what_is_on():
     assert "learned speed x1.05" in DrivingSettings(speed_scale=1.05).describe()
     assert "full speed from 0.92 of the set speed" in \
         DrivingSettings(full_speed_at=0.92).describe()
+    assert "steering times 24 mph / speed above 24 mph" in \
+        DrivingSettings(steering_scale_from_mph=24).describe()
 
 
 def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_path, tmp_path):
@@ -112,6 +117,7 @@ def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_p
                                        '"mirror_average": true}}')
     assert load_policy(path).speed_scale == 1.0
     assert load_policy(path, speed_scale=1.1).speed_scale == 1.1
+    assert load_policy(path).steering_scale_from_mph == 0.0  # nor scales its steering
 
 
 def test_a_recorded_run_without_a_later_setting_reads_as_its_default():
@@ -121,6 +127,7 @@ def test_a_recorded_run_without_a_later_setting_reads_as_its_default():
     assert DrivingSettings(**filled) == DrivingSettings(mirror_average=True, steering_hold=0.02)
     assert with_defaults({"speed_scale": 1.05})["speed_scale"] == 1.05
     assert with_defaults(recorded)["full_speed_at"] == 1.0  # before full_speed_at existed
+    assert with_defaults(recorded)["steering_scale_from_mph"] == 0.0
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):

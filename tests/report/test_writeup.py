@@ -182,12 +182,14 @@ def test_results_say_when_the_steering_was_filtered_or_held(tmp_path: Path, run_
     path = folder / "eval" / "eval.json"
     evaluation = json.loads(path.read_text(encoding="utf-8"))
     path.write_text(json.dumps({**evaluation, "steering_filter_s": 0.2, "steering_hold": 0.05,
-                                "mirror_average": True}), encoding="utf-8")
+                                "mirror_average": True, "steering_scale_from_mph": 24.0}),
+                    encoding="utf-8")
     results = _section(write_report(folder).markdown_path.read_text(encoding="utf-8"),
                        SECTION_TITLES["results"])
     assert "**The steering was smoothed**" in results
     assert "0.2 s time constant" in results and "within 0.05 of the wheel" in results
     assert "averaged with the mirrored frame's" in results
+    assert "multiplied above 24 mph by 24 mph over the car's speed" in results
 
 
 def test_markdown_links_existing_pngs_and_html_embeds_them(report) -> None:

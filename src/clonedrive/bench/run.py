@@ -60,6 +60,8 @@ class BenchConfig:
     slow_in_curves: bool | None = None  #: the network's target speed falls with |steering|
     steering_filter_s: float | None = None  #: low-pass on the predicted steering [s]
     steering_hold: float | None = None  #: hold the wheel through smaller steering jitter
+    #: above this speed [mph] the prediction is scaled by it over the car's speed
+    steering_scale_from_mph: float | None = None
     mirror_average: bool | None = None  #: average each frame's prediction with its mirror's
     speed_scale: float | None = None  #: a speed head's target speed times this
     full_speed_at: float | None = None  #: a speed head's targets from this fraction: full speed
@@ -95,6 +97,7 @@ class BenchConfig:
         given = {"slow_in_curves": self.slow_in_curves,
                  "steering_filter_s": self.steering_filter_s,
                  "steering_hold": self.steering_hold, "mirror_average": self.mirror_average,
+                 "steering_scale_from_mph": self.steering_scale_from_mph,
                  "speed_scale": self.speed_scale, "full_speed_at": self.full_speed_at}
         return {name: value for name, value in given.items() if value is not None}
 

@@ -30,8 +30,9 @@ def add_model_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = True) -> None:
-    """``--steering-filter``, ``--steering-hold``, ``--mirror-average`` and (with ``speed``)
-    ``--slow-in-curves``, ``--speed-scale`` and ``--full-speed-at``: what stands between the
+    """``--steering-filter``, ``--steering-hold``, ``--steering-scale-from``,
+    ``--mirror-average`` and (with ``speed``) ``--slow-in-curves``, ``--speed-scale`` and
+    ``--full-speed-at``: what stands between the
     network and the controls (:class:`clonedrive.network.driving_settings.DrivingSettings`).
     Each left out takes the setting stored in the model file (drive.py's, all off, for a file
     without them)."""
@@ -43,6 +44,12 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
                              "delay; 0 = off, as drive.py; default: the model's own setting)")
+    parser.add_argument("--steering-scale-from", type=_steering_scale_from, default=None,
+                        metavar="MPH",
+                        help="above MPH, multiply the predicted steering by MPH / the car's "
+                             "speed, so that a prediction turns the car no faster than at MPH "
+                             "(a calmer wheel, a wider line through fast bends; 0 = off, as "
+                             "drive.py; default: the model's own setting)")
     parser.add_argument("--mirror-average", action=argparse.BooleanOptionalAction, default=None,
                         help="predict on each frame and on its mirror image and average the "
                              "two (mirrored steering negated): cancels the part of the "
@@ -81,6 +88,13 @@ def _steering_hold(text: str) -> float:
     from clonedrive.drivers.policy import SteeringFilter
 
     return _checked_float(text, lambda value: SteeringFilter(hold=value))
+
+
+def _steering_scale_from(text: str) -> float:
+    """``--steering-scale-from``'s value, refused by argparse (exit 2) unless 0 or in range."""
+    from clonedrive.network.driving_settings import check_steering_scale_from
+
+    return _checked_float(text, check_steering_scale_from)
 
 
 def _speed_scale(text: str) -> float:
@@ -146,6 +160,7 @@ def steering_options(args: argparse.Namespace) -> dict:
     (and BenchConfig) name them; the ones left out are not in the dict (the model's own)."""
     given = {"steering_filter_s": getattr(args, "steering_filter", None),
              "steering_hold": getattr(args, "steering_hold", None),
+             "steering_scale_from_mph": getattr(args, "steering_scale_from", None),
              "mirror_average": getattr(args, "mirror_average", None),
              "slow_in_curves": getattr(args, "slow_in_curves", None),
              "speed_scale": getattr(args, "speed_scale", None),

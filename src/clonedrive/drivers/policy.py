@@ -33,6 +33,7 @@ from clonedrive.network.driving_settings import (
     DrivingSettings,
     check_full_speed_at,
     check_speed_scale,
+    check_steering_scale_from,
 )
 from clonedrive.network.traced import PortableModel, TracedForward, forward_for, tensor_dtype
 
@@ -99,16 +100,23 @@ class SpeedController:
 
 
 class SteeringFilter:
-    """What stands between the network's steering and the wheel, per car: a first-order low-pass
-    with ``time_constant_s`` [s] at ``control_hz`` (the expert's "hand", drivers.expert: 0.1 s),
-    then a hold of ``hold`` (steering units, [-1, 1]): the wheel stays where it is while the
-    (low-passed) prediction is within ``hold`` of it, and otherwise moves just far enough to be
-    ``hold`` from it. The hold removes frame-to-frame jitter smaller than itself without the
-    low-pass's delay: the wheel is never further than ``hold`` from the prediction. Both 0 (the
-    default, as drive.py): steering passes through."""
+    """What stands between the network's steering and the wheel, per car: above
+    ``scale_from_mph`` the prediction is scaled by ``scale_from_mph / speed``; then a
+    first-order low-pass with ``time_constant_s`` [s] at ``control_hz`` (the expert's "hand",
+    drivers.expert: 0.1 s), then a hold of ``hold`` (steering units, [-1, 1]): the wheel stays
+    where it is while the (low-passed) prediction is within ``hold`` of it, and otherwise moves
+    just far enough to be ``hold`` from it. The hold removes frame-to-frame jitter smaller than
+    itself without the low-pass's delay: the wheel is never further than ``hold`` from the
+    prediction. All 0 (the default, as drive.py): steering passes through.
+
+    The scale: a wheel angle turns the car at a rate proportional to its speed, and a network
+    does not see its speed. Above ``scale_from_mph`` a prediction turns the car as fast as it
+    would at that speed, no faster: the steering loop's gain stops growing with speed (the
+    expert's own gain falls with speed, drivers.expert), for a calmer wheel at the price of a
+    wider line through bends taken fast."""
 
     def __init__(self, time_constant_s: float = 0.0, control_hz: float = CONTROL_HZ,
-                 hold: float = 0.0) -> None:
+                 hold: float = 0.0, scale_from_mph: float = 0.0) -> None:
         if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
             raise ValueError(f"steering filter time constant must be >= 0 s, got "
                              f"{time_constant_s}")
@@ -116,6 +124,7 @@ class SteeringFilter:
             raise ValueError(f"steering hold must be in [0, 1) (steering units), got {hold}")
         self.time_constant_s = float(time_constant_s)
         self.hold = float(hold)
+        self.scale_from_mph = check_steering_scale_from(scale_from_mph)
         period = 1.0 / float(control_hz)
         self.alpha = period / (self.time_constant_s + period)
         self.steering: float | None = None  #: the wheel: the last command handed out
@@ -125,8 +134,10 @@ class SteeringFilter:
         self.steering = None
         self._smoothed = None
 
-    def update(self, steering: float) -> float:
-        """The wheel's steering after this step's prediction ``steering``."""
+    def update(self, steering: float, speed_mph: float | None = None) -> float:
+        """The wheel's steering after this step's prediction ``steering`` at the car's
+        ``speed_mph`` (None, or not a finite number: not scaled)."""
+        steering = float(steering) * self.scale(speed_mph)
         if self._smoothed is None or self.alpha >= 1.0:
             self._smoothed = float(steering)
         else:
@@ -137,6 +148,14 @@ class SteeringFilter:
             self.steering = min(max(self.steering, self._smoothed - self.hold),
                                 self._smoothed + self.hold)
         return self.steering
+
+    def scale(self, speed_mph: float | None) -> float:
+        """What the prediction is multiplied by at ``speed_mph``: below ``scale_from_mph``
+        (or with it 0), 1."""
+        if not self.scale_from_mph or speed_mph is None:
+            return 1.0
+        speed = float(speed_mph)
+        return self.scale_from_mph / speed if speed > self.scale_from_mph else 1.0
 
 
 def stretched_speed(learned_mph: float, set_speed_mph: float, full_speed_at: float) -> float:
@@ -165,8 +184,9 @@ class NetworkPolicy:
     (:func:`stretched_speed`): a speed head predicts a little below the set speed through bends
     the expert takes at full speed, while its braking for tight bends, below the stretch, stays
     as learned. ``steering_filter_s`` > 0 low-passes the predicted steering and
-    ``steering_hold`` > 0 holds the wheel through jitter smaller than itself
-    (:class:`SteeringFilter`; both off by default, as drive.py). ``mirror_average`` (off by
+    ``steering_hold`` > 0 holds the wheel through jitter smaller than itself, and
+    ``steering_scale_from_mph`` > 0 scales the prediction by that speed over the car's above it
+    (:class:`SteeringFilter`; all off by default, as drive.py). ``mirror_average`` (off by
     default) predicts on each frame and on its mirror image and averages the two (the
     mirror's steering negated, its target speed as it is): the part of the network's
     frame-to-frame noise that the two views do not share cancels, for twice the inference
@@ -189,6 +209,7 @@ class NetworkPolicy:
         mirror_average: bool = False,
         speed_scale: float = 1.0,
         full_speed_at: float = 1.0,
+        steering_scale_from_mph: float = 0.0,
     ) -> None:
         check_model(model)
         self.speed_scale = check_speed_scale(speed_scale)
@@ -196,6 +217,7 @@ class NetworkPolicy:
         self.mirror_average = bool(mirror_average)
         self.steering_filter_s = float(steering_filter_s)
         self.steering_hold = float(steering_hold)
+        self.steering_scale_from_mph = float(steering_scale_from_mph)
         self.steering_filter = self.new_steering_filter()
         self.model = model
         self.speed_head = has_speed_head(model)
@@ -240,8 +262,10 @@ class NetworkPolicy:
         return car
 
     def new_steering_filter(self) -> SteeringFilter:
-        """A :class:`SteeringFilter` with this policy's time constant and hold (one per car)."""
-        return SteeringFilter(self.steering_filter_s, hold=self.steering_hold)
+        """A :class:`SteeringFilter` with this policy's time constant, hold and speed scale (one
+        per car)."""
+        return SteeringFilter(self.steering_filter_s, hold=self.steering_hold,
+                              scale_from_mph=self.steering_scale_from_mph)
 
     def options(self) -> dict:
         """The constructor options (other than the model and the set speed) that make another
@@ -251,7 +275,9 @@ class NetworkPolicy:
                 "min_speed_fraction": self.min_speed_fraction,
                 "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
                 "mirror_average": self.mirror_average, "speed_scale": self.speed_scale,
-                "full_speed_at": self.full_speed_at, "batch_size": self.batch_size}
+                "full_speed_at": self.full_speed_at,
+                "steering_scale_from_mph": self.steering_scale_from_mph,
+                "batch_size": self.batch_size}
 
     def driving_settings(self) -> DrivingSettings:
         """What stands between this policy's network and the controls."""
@@ -260,7 +286,8 @@ class NetworkPolicy:
                                steering_hold=self.steering_hold,
                                mirror_average=self.mirror_average,
                                speed_scale=self.speed_scale,
-                               full_speed_at=self.full_speed_at)
+                               full_speed_at=self.full_speed_at,
+                               steering_scale_from_mph=self.steering_scale_from_mph)
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to
@@ -303,7 +330,7 @@ class NetworkPolicy:
                 f"got {image_rgb.dtype} {image_rgb.shape}"
             )
         steering, learned, _ = self._predict(image_rgb[np.newaxis])
-        steer = self.steering_filter.update(float(steering[0]))
+        steer = self.steering_filter.update(float(steering[0]), speed_mph)
         self.controller.set_speed_mph = self.target_speed_mph(
             steer, learned_speed_mph=None if learned is None else float(learned[0]))
         throttle = self.controller.update(speed_mph)

@@ -71,7 +71,7 @@ class PolicyDriver:
             self.nan_predictions[car] += int(bad)
         decisions = []
         for index, (car, obs, steer) in enumerate(zip(cars, observations, steering, strict=True)):
-            steer = self.filters[car].update(float(steer))
+            steer = self.filters[car].update(float(steer), obs.speed_mph)
             controller = self.controllers[car]
             controller.set_speed_mph = self.policy.target_speed_mph(
                 float(steer), set_speed_mph=self.set_speeds_mph[car],

@@ -119,6 +119,7 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
         "speed_head": speed_head,
         "steering_filter_s": policy.steering_filter_s,
         "steering_hold": policy.steering_hold,
+        "steering_scale_from_mph": policy.steering_scale_from_mph,
         "mirror_average": policy.mirror_average,
         "speed_scale": policy.speed_scale,
         "full_speed_at": policy.full_speed_at,

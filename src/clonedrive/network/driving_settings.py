@@ -55,6 +55,9 @@ class DrivingSettings:
     #: a speed head's target at or above this fraction of the set speed drives at the set
     #: speed; targets from :data:`STRETCH_FROM` of it up are stretched to match (1: as learned)
     full_speed_at: float = 1.0
+    #: above this speed [mph] the wheel gets (this / speed) of the predicted steering, so a
+    #: prediction turns the car no faster than it would at this speed (0: off, as drive.py)
+    steering_scale_from_mph: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("slow_in_curves", "mirror_average"):
@@ -70,6 +73,7 @@ class DrivingSettings:
                              f"{self.steering_hold}")
         check_speed_scale(self.speed_scale)
         check_full_speed_at(self.full_speed_at)
+        check_steering_scale_from(self.steering_scale_from_mph)
 
     def options(self) -> dict:
         """These settings as NetworkPolicy's keyword arguments."""
@@ -84,6 +88,8 @@ class DrivingSettings:
             parts.append(f"steering hold {self.steering_hold:g}")
         if self.steering_filter_s:
             parts.append(f"steering low-pass {self.steering_filter_s:g} s")
+        if self.steering_scale_from_mph:
+            parts.append(steering_scale_text(self.steering_scale_from_mph))
         if self.slow_in_curves:
             parts.append("slower in curves (the hand-made rule)")
         if self.speed_scale != 1.0:
@@ -285,3 +291,22 @@ def _write_keras_notes(path: Path, text: str) -> None:
         os.replace(temporary, path)
     finally:
         temporary.unlink(missing_ok=True)
+
+
+#: The range of a non-zero ``steering_scale_from_mph`` [mph]: below it the scale would cut the
+#: steering a car needs at walking pace.
+STEERING_SCALE_FROM_RANGE_MPH = (5.0, 100.0)
+
+
+def check_steering_scale_from(value: object) -> float:
+    """``value`` as ``steering_scale_from_mph``; ``ValueError`` unless 0 (off) or a number in
+    :data:`STEERING_SCALE_FROM_RANGE_MPH`."""
+    low, high = STEERING_SCALE_FROM_RANGE_MPH
+    return _finite_number(value, lambda number: number == 0 or low <= number <= high,
+                          f"steering_scale_from_mph must be 0 (off) or a number in "
+                          f"[{low:g}, {high:g}] mph")
+
+
+def steering_scale_text(scale_from_mph: float) -> str:
+    """How eval.json and :meth:`DrivingSettings.describe` name ``steering_scale_from_mph``."""
+    return f"steering times {scale_from_mph:g} mph / speed above {scale_from_mph:g} mph"

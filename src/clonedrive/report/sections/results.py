@@ -152,6 +152,10 @@ def _steering_text(report: dict) -> str:
     steps = []
     if report.get("mirror_average"):
         steps.append("averaged with the mirrored frame's")
+    scale_from = float(report.get("steering_scale_from_mph") or 0.0)
+    if scale_from > 0.0:
+        steps.append(f"multiplied above {scale_from:g} mph by {scale_from:g} mph over the "
+                     "car's speed")
     if float(report.get("steering_filter_s") or 0.0) > 0.0:
         steps.append(f"low-passed with a {float(report['steering_filter_s']):g} s time constant")
     if float(report.get("steering_hold") or 0.0) > 0.0:

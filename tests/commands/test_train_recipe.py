@@ -30,8 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.005, steering_filter_s=0.05, full_speed_at=0.95,
-        steering_scale_from_mph=24.0)
+        mirror_average=True, steering_hold=0.005, steering_filter_s=0.05, full_speed_at=0.95)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -56,8 +55,8 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["mirror_average"] is True and header["steering_hold"] == 0.005
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 6}
-    assert header["steering_scale_from_mph"] == 24.0
+    assert header["recipe"] == {"name": "best", "version": 5}
+    assert header["steering_scale_from_mph"] == 0.0
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
     assert "full speed from 0.95 of the set speed" in header["speed_control"]
@@ -65,11 +64,11 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     out = tmp_path / "eval2"
     assert main(["evaluate", str(best_run / "model.keras"), "--track", "lake", "--laps", "1",
                  "--max-seconds", "2", "--no-scenery", "--workers", "1", "--out", str(out),
-                 "--no-mirror-average", "--slow-in-curves", "--steering-scale-from", "0",
+                 "--no-mirror-average", "--slow-in-curves", "--steering-scale-from", "24",
                  "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
     assert header["mirror_average"] is False and header["steering_hold"] == 0.005
-    assert header["slow_in_curves"] is True and header["steering_scale_from_mph"] == 0.0
+    assert header["slow_in_curves"] is True and header["steering_scale_from_mph"] == 24.0
 
 
 def test_train_with_the_writeup_recipe(tmp_path: Path):

@@ -65,7 +65,7 @@ def test_a_copied_and_edited_recipe_is_used(tmp_path):
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
-    assert recipe.label() == "mine v6"  # the copy keeps best's version
+    assert recipe.label() == "mine v5"  # the copy keeps best's version
     assert recipe.train_config().epochs == 2
     assert recipe.driving.steering_hold == 0.008
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
@@ -92,7 +92,7 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
     (("[train]", "[train]\nwarp = 9"), "warp"),
     (("steering_hold = 0.005", "steering_hold = 2.0"), "steering_hold"),
     (('name = "best"', 'name = ""'), "needs a name"),
-    (("version = 6", "version = 0"), "version"),
+    (("version = 5", "version = 0"), "version"),
     (("laps = 3", "laps = 0"), "laps"),
     (('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
     (("correction = 0.054", "correction = 7"), "correction"),

@@ -84,12 +84,13 @@ class DrivingSettings:
         parts = []
         if self.mirror_average:
             parts.append("mirror averaging")
+        if self.steering_scale_from_mph:
+            limit = self.steering_scale_from_mph
+            parts.append(f"steering times {limit:g} mph / speed above {limit:g} mph")
         if self.steering_hold:
             parts.append(f"steering hold {self.steering_hold:g}")
         if self.steering_filter_s:
             parts.append(f"steering low-pass {self.steering_filter_s:g} s")
-        if self.steering_scale_from_mph:
-            parts.append(steering_scale_text(self.steering_scale_from_mph))
         if self.slow_in_curves:
             parts.append("slower in curves (the hand-made rule)")
         if self.speed_scale != 1.0:
@@ -305,8 +306,3 @@ def check_steering_scale_from(value: object) -> float:
     return _finite_number(value, lambda number: number == 0 or low <= number <= high,
                           f"steering_scale_from_mph must be 0 (off) or a number in "
                           f"[{low:g}, {high:g}] mph")
-
-
-def steering_scale_text(scale_from_mph: float) -> str:
-    """How eval.json and :meth:`DrivingSettings.describe` name ``steering_scale_from_mph``."""
-    return f"steering times {scale_from_mph:g} mph / speed above {scale_from_mph:g} mph"

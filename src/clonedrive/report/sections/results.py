@@ -163,8 +163,9 @@ def _steering_text(report: dict) -> str:
                      f"{float(report['steering_hold']):g} of the wheel")
     if not steps:
         return ""
-    return (" **The steering was smoothed**: the network's prediction was "
-            + " and ".join(steps) + " (so the smoothness figures are not drive.py's).")
+    listed = steps[0] if len(steps) == 1 else ", ".join(steps[:-1]) + " and " + steps[-1]
+    return (" **The steering was smoothed**: the network's prediction was " + listed
+            + " (so the smoothness figures are not drive.py's).")
 
 
 def _total_row(label: str, runs: list[dict], totals: dict | None) -> tuple[str, ...]:

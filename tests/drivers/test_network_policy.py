@@ -223,6 +223,7 @@ def test_steering_scale_from_turns_the_car_no_faster_than_at_that_speed() -> Non
         assert wheel.update(1.0, speed_mph=speed) * speed == pytest.approx(24.0)
     # No speed, or one that is not a number: not scaled.
     assert wheel.update(0.5) == 0.5 and wheel.update(0.5, speed_mph=float("nan")) == 0.5
+    assert wheel.update(0.5, speed_mph=float("inf")) == 0.5
     # Off by default and at 0, as drive.py.
     assert SteeringFilter().update(0.5, speed_mph=80.0) == 0.5
     # Scaled before the low-pass and the hold: the hold acts on the scaled prediction.

@@ -152,7 +152,7 @@ class SteeringFilter:
     def scale(self, speed_mph: float | None) -> float:
         """What the prediction is multiplied by at ``speed_mph``: below ``scale_from_mph``
         (or with it 0), 1."""
-        if not self.scale_from_mph or speed_mph is None:
+        if not self.scale_from_mph or speed_mph is None or not math.isfinite(speed_mph):
             return 1.0
         speed = float(speed_mph)
         return self.scale_from_mph / speed if speed > self.scale_from_mph else 1.0

@@ -18,7 +18,7 @@ Models are given as ``PATH`` or ``LABEL=PATH``; models with the same label are o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -93,12 +93,12 @@ class BenchConfig:
     def policy_options(self) -> dict:
         """The NetworkPolicy options given for every model (as NetworkPolicy.options() names
         them); the ones not given are each model's own (load_policy reads them from its file),
-        the rest keep their defaults: drive.py's PI gains."""
-        given = {"slow_in_curves": self.slow_in_curves,
-                 "steering_filter_s": self.steering_filter_s,
-                 "steering_hold": self.steering_hold, "mirror_average": self.mirror_average,
-                 "steering_scale_from_mph": self.steering_scale_from_mph,
-                 "speed_scale": self.speed_scale, "full_speed_at": self.full_speed_at}
+        the rest keep their defaults: drive.py's PI gains. Each of DrivingSettings' fields is
+        a field of this config by the same name."""
+        from clonedrive.network.driving_settings import DrivingSettings
+
+        given = {field.name: getattr(self, field.name)
+                 for field in fields(DrivingSettings)}
         return {name: value for name, value in given.items() if value is not None}
 
 

@@ -19,6 +19,7 @@ entry point every command that drives uses (``trust``: ``--trust-model``; ``runt
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -271,23 +272,14 @@ class NetworkPolicy:
         """The constructor options (other than the model and the set speed) that make another
         process's policy for the same model drive as this one does."""
         return {"kp": self.controller.kp, "ki": self.controller.ki,
-                "slow_in_curves": self.slow_in_curves, "curve_gain": self.curve_gain,
-                "min_speed_fraction": self.min_speed_fraction,
-                "steering_filter_s": self.steering_filter_s, "steering_hold": self.steering_hold,
-                "mirror_average": self.mirror_average, "speed_scale": self.speed_scale,
-                "full_speed_at": self.full_speed_at,
-                "steering_scale_from_mph": self.steering_scale_from_mph,
-                "batch_size": self.batch_size}
+                "curve_gain": self.curve_gain, "min_speed_fraction": self.min_speed_fraction,
+                "batch_size": self.batch_size, **self.driving_settings().options()}
 
     def driving_settings(self) -> DrivingSettings:
-        """What stands between this policy's network and the controls."""
-        return DrivingSettings(slow_in_curves=self.slow_in_curves,
-                               steering_filter_s=self.steering_filter_s,
-                               steering_hold=self.steering_hold,
-                               mirror_average=self.mirror_average,
-                               speed_scale=self.speed_scale,
-                               full_speed_at=self.full_speed_at,
-                               steering_scale_from_mph=self.steering_scale_from_mph)
+        """What stands between this policy's network and the controls: each of
+        :class:`DrivingSettings`' fields is an attribute of the policy by the same name."""
+        return DrivingSettings(**{field.name: getattr(self, field.name)
+                                  for field in dataclasses.fields(DrivingSettings)})
 
     def portable(self, cars: int) -> PortableModel | None:
         """This policy's model as checked traces for every batch it predicts when it drives up to

@@ -139,9 +139,48 @@ def test_pilotnet_layers_and_frozen_yuv_conversion() -> None:
 def test_fast_is_small() -> None:
     model = build_model("fast")
     assert model.count_params() < 100_000
-    assert [type(layer).__name__ for layer in model.layers[:5]] == [
-        "InputLayer", "Cropping2D", "Rescaling", "AveragePooling2D", "Permute"
+    assert [type(layer).__name__ for layer in model.layers[:7]] == [
+        "InputLayer", "Cropping2D", "Permute", "Reshape", "Reshape", "Rescaling",
+        "AveragePooling2D",
     ]
+
+
+def _in_previous_order(model: keras.Model) -> keras.Model:
+    """``model``'s layers from the first convolution on, after the preprocessing in the order
+    ``fast`` had up to 2026-12-06: scaled, pooled channels-last, then channels moved first."""
+    inputs = keras.Input(shape=(160, 320, 3), dtype="uint8")
+    x = keras.layers.Cropping2D(model.get_layer("crop").cropping)(inputs)
+    x = keras.layers.Rescaling(1.0 / 127.5, offset=-1.0)(x)
+    x = keras.layers.AveragePooling2D(pool_size=(2, 2))(x)
+    x = keras.layers.Permute((3, 1, 2))(x)
+    for name in ("conv1", "conv2", "conv3", "flatten", "dense1"):
+        x = model.get_layer(name)(x)
+    return keras.Model(inputs, [model.get_layer(name)(x)
+                                for name in ("steering", "target_speed")])
+
+
+def test_fast_computes_what_its_previous_layer_order_did_to_the_bit() -> None:
+    """The layout change is for speed only: a different memory layout changes the
+    convolutions' rounding, and training would amplify that into a different model."""
+    model = build_model("fast", seed=4, speed_head=True, crop_top_px=60)
+    frames = np.random.default_rng(4).integers(0, 256, (8, 160, 320, 3), dtype=np.uint8)
+    for new, old in zip(model.predict_on_batch(frames),
+                        _in_previous_order(model).predict_on_batch(frames), strict=True):
+        assert np.array_equal(np.asarray(new), np.asarray(old))
+
+
+@pytest.mark.parametrize("data_format", ["channels_first", "channels_last"])
+def test_fast_downsamples_the_crop_to_minus_one_to_one(data_format: str) -> None:
+    """The uint8 crop is scaled to [-1, 1] and averaged over 2x2 blocks in either layout."""
+    model = build_model("fast", crop_top_px=60, data_format=data_format)
+    probe = keras.Model(model.inputs[0], model.get_layer("downsample").output)
+    frames = np.random.default_rng(3).integers(0, 256, (2, 160, 320, 3), dtype=np.uint8)
+    crop = frames[:, 60:135].astype(np.float64) / 127.5 - 1.0
+    expected = crop[:, :74].reshape(2, 37, 2, 160, 2, 3).mean(axis=(2, 4))
+    out = np.asarray(probe.predict(frames, verbose=0))
+    if data_format == "channels_first":
+        out = out.transpose(0, 2, 3, 1)
+    np.testing.assert_allclose(out, expected, atol=1e-5)
 
 
 def test_unknown_model_name_is_an_error() -> None:

@@ -94,6 +94,22 @@ def _to_data_format(x, data_format: str):
     return x
 
 
+def _uint8_channels_first(crop):
+    """The uint8 crop in channels-first order, laid out in memory as such.
+
+    Up to 2026-12-06 ``fast`` scaled the crop to float and then pooled it channels-last; with
+    PyTorch that pooling copies the float frame into channels-first order. Moving the channels
+    while the frame is uint8 copies a quarter of the bytes. Permute alone only changes the
+    strides, so a flatten and unflatten (Reshape) make the copy: the pooling and convolutions
+    then see memory laid out as before and compute the same values to the bit (a different
+    layout changes the convolutions' rounding, and training amplifies it).
+    """
+    rows, columns, channels = crop.shape[1:]
+    x = layers.Permute((3, 1, 2), name="channels_first")(crop)
+    x = layers.Reshape((-1,), name="flatten_channels_first")(x)
+    return layers.Reshape((channels, rows, columns), name="frame_channels_first")(x)
+
+
 def _heads(inputs, features, seeds: _Seeds, speed_head: bool, name: str) -> keras.Model:
     """The model with the ``steering`` output on the last hidden layer ``features`` (and, with
     ``speed_head``, the ``target_speed`` output beside it)."""
@@ -203,17 +219,18 @@ def build_fast(
 ) -> keras.Model:
     """A small network (about 89k parameters) that trains in minutes on 2 CPU cores.
 
-    Input 160x320x3 -> crop (80, 25) -> 55x320 -> Rescaling to [-1, 1] ->
-    AveragePooling2D (2, 2) -> 27x160 -> [Permute to channels-first] -> Conv2D 16 5x5
-    stride (2, 2) -> 12x78 -> Conv2D 32 3x3 stride (1, 2) -> 10x38 -> Conv2D 32 3x3 stride
-    (2, 2) -> 4x18 -> Flatten -> Dense 32 -> Dense 1; ReLU.
+    Input 160x320x3 -> crop (80, 25) -> 55x320 -> [channels first, still uint8] -> Rescaling to
+    [-1, 1] -> AveragePooling2D (2, 2) -> 27x160 -> Conv2D 16 5x5 stride (2, 2) -> 12x78 ->
+    Conv2D 32 3x3 stride (1, 2) -> 10x38 -> Conv2D 32 3x3 stride (2, 2) -> 4x18 -> Flatten ->
+    Dense 32 -> Dense 1; ReLU.
     """
     seeds = _Seeds(seed)
     inputs = _frame_input()
     x = _crop(inputs, crop_top_px)
+    if data_format == "channels_first":
+        x = _uint8_channels_first(x)
     x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
-    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
-    x = _to_data_format(x, data_format)
+    x = layers.AveragePooling2D(pool_size=(2, 2), data_format=data_format, name="downsample")(x)
     for index, (filters, size, stride) in enumerate(
         [(16, 5, (2, 2)), (32, 3, (1, 2)), (32, 3, (2, 2))], start=1
     ):

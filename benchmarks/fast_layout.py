@@ -1,0 +1,108 @@
+"""Training and inference speed of the ``fast`` network against its previous layer order.
+
+Run: python benchmarks/fast_layout.py [--batch-size 256] [--rounds 5] [--steps 8]
+
+``fast`` (``best``'s network: speed head, 60-row crop) as the package builds it now, with the
+channels moved first on the uint8 crop and the pooling in the convolutions' layout, against the
+same network in the layer order it had up to 2026-12-06 (Rescaling and a channels-last pooling
+ahead of the Permute), built here as the reference with the same weights. Both train with
+``train_on_batch`` (Adam, MSE on both heads) and predict on the same random uint8 frames, in
+interleaved rounds; each one's best round counts (load from other processes only ever slows a
+round down), and the median of the per-round ratios is printed too. The largest difference
+between the two networks' predictions shows they compute the same function.
+
+Ends with one JSON line: ``train_speedup`` and ``predict_speedup`` (reference time over the
+package's, > 1 is faster), their medians, the step times in ms and ``max_abs_diff``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+
+def _previous_fast(keras, crop_top_px: int):
+    """``fast`` in the layer order it had before, with the package's layer names."""
+    from clonedrive.network.crop import CROP_BOTTOM_PX
+
+    layers = keras.layers
+    inputs = keras.Input(shape=(160, 320, 3), dtype="uint8", name="image_rgb")
+    x = layers.Cropping2D(((crop_top_px, CROP_BOTTOM_PX), (0, 0)), name="crop")(inputs)
+    x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
+    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
+    x = layers.Permute((3, 1, 2), name="channels_first")(x)
+    for index, (filters, size, stride) in enumerate(
+            [(16, 5, (2, 2)), (32, 3, (1, 2)), (32, 3, (2, 2))], start=1):
+        x = layers.Conv2D(filters, size, strides=stride, activation="relu",
+                          data_format="channels_first", name=f"conv{index}")(x)
+    x = layers.Flatten(name="flatten")(x)
+    x = layers.Dense(32, activation="relu", name="dense1")(x)
+    return keras.Model(inputs, [layers.Dense(1, name="steering")(x),
+                                layers.Dense(1, name="target_speed")(x)], name="fast_previous")
+
+
+def _seconds_per_call(function, steps: int) -> float:
+    function()
+    start = time.perf_counter()
+    for _ in range(steps):
+        function()
+    return (time.perf_counter() - start) / steps
+
+
+def _round(models, frames, labels, steps: int) -> dict[str, tuple[float, float]]:
+    return {name: (_seconds_per_call(lambda m=model: m.train_on_batch(frames, labels), steps),
+                   _seconds_per_call(lambda m=model: m.predict_on_batch(frames), steps))
+            for name, model in models.items()}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--batch-size", type=int, default=256,
+                        help="frames per step (256: a consistency step of batch 128)")
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=8, help="steps timed per round")
+    args = parser.parse_args(argv)
+
+    import numpy as np
+
+    from clonedrive.base.keras_backend import import_keras
+    from clonedrive.model.architectures import build_model
+
+    keras = import_keras()
+    package = build_model("fast", seed=0, speed_head=True, crop_top_px=60)
+    previous = _previous_fast(keras, 60)
+    previous.set_weights(package.get_weights())
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 256, (args.batch_size, 160, 320, 3), dtype=np.uint8)
+    difference = max(float(np.max(np.abs(np.asarray(a) - np.asarray(b)))) for a, b in zip(
+        package.predict_on_batch(frames), previous.predict_on_batch(frames), strict=True))
+    labels = [rng.uniform(-0.5, 0.5, (args.batch_size, 1)).astype(np.float32) for _ in range(2)]
+    models = {"package": package, "previous": previous}
+    for model in models.values():
+        model.compile(optimizer=keras.optimizers.Adam(1e-4), loss=["mse", "mse"])
+    rounds = [_round(models, frames, labels, args.steps) for _ in range(args.rounds)]
+    result = _summary(rounds, difference, args.batch_size)
+    print(json.dumps(result))
+    return result
+
+
+def _summary(rounds, difference: float, batch_size: int) -> dict:
+    figures = {"batch_size": batch_size, "rounds": len(rounds), "max_abs_diff": difference}
+    for slot, kind in enumerate(("train", "predict")):
+        best = {name: min(entry[name][slot] for entry in rounds) for name in rounds[0]}
+        ratios = [entry["previous"][slot] / entry["package"][slot] for entry in rounds]
+        figures[f"{kind}_ms"] = round(best["package"] * 1000, 1)
+        figures[f"{kind}_ms_previous"] = round(best["previous"] * 1000, 1)
+        figures[f"{kind}_speedup"] = round(best["previous"] / best["package"], 3)
+        figures[f"{kind}_speedup_median"] = round(statistics.median(ratios), 3)
+        print(f"{kind}: {figures[f'{kind}_ms']} ms per {batch_size} frames, previous layer "
+              f"order {figures[f'{kind}_ms_previous']} ms: {figures[f'{kind}_speedup']}x "
+              f"(median of rounds {figures[f'{kind}_speedup_median']}x)")
+    print(f"largest difference between the two networks' predictions: {difference:.2e}")
+    return figures
+
+
+if __name__ == "__main__":
+    main()

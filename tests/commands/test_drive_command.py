@@ -51,11 +51,12 @@ def test_bad_steering_filter_or_hold_is_named(tiny_model_path: Path,
         with pytest.raises(SystemExit) as exit_hold:
             main([verb, model, "--steering-hold", "1.5"])
         assert exit_hold.value.code == 2
-        assert "steering hold must be in [0, 1)" in capsys.readouterr().err
+        assert "steering_hold must be a number in [0, 1)" in capsys.readouterr().err
         with pytest.raises(SystemExit) as exit_filter:
             main([verb, model, "--steering-filter", "-1"])
         assert exit_filter.value.code == 2
-        assert "steering filter time constant must be >= 0" in capsys.readouterr().err
+        assert "steering_filter_s (the steering low-pass's time constant) must be a number >= 0" \
+            in capsys.readouterr().err
 
 
 def test_serves_the_simulator_until_interrupted(tmp_path: Path, tiny_model_path: Path,

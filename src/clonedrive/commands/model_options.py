@@ -76,18 +76,17 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
 
 
 def _steering_filter_s(text: str) -> float:
-    """``--steering-filter``'s value, refused by argparse (exit 2) where the filter refuses it
-    (NaN, infinity, negative)."""
-    from clonedrive.drivers.policy import SteeringFilter
+    """``--steering-filter``'s value, refused by argparse (exit 2) unless a number >= 0."""
+    from clonedrive.network.driving_settings import check_steering_filter_s
 
-    return _checked_float(text, lambda value: SteeringFilter(time_constant_s=value))
+    return _checked_float(text, check_steering_filter_s)
 
 
 def _steering_hold(text: str) -> float:
     """``--steering-hold``'s value, refused by argparse (exit 2) outside [0, 1)."""
-    from clonedrive.drivers.policy import SteeringFilter
+    from clonedrive.network.driving_settings import check_steering_hold
 
-    return _checked_float(text, lambda value: SteeringFilter(hold=value))
+    return _checked_float(text, check_steering_hold)
 
 
 def _steering_scale_from(text: str) -> float:

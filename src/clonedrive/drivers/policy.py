@@ -34,6 +34,8 @@ from clonedrive.network.driving_settings import (
     DrivingSettings,
     check_full_speed_at,
     check_speed_scale,
+    check_steering_filter_s,
+    check_steering_hold,
     check_steering_scale_from,
 )
 from clonedrive.network.traced import PortableModel, TracedForward, forward_for, tensor_dtype
@@ -118,13 +120,8 @@ class SteeringFilter:
 
     def __init__(self, time_constant_s: float = 0.0, control_hz: float = CONTROL_HZ,
                  hold: float = 0.0, scale_from_mph: float = 0.0) -> None:
-        if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
-            raise ValueError(f"steering filter time constant must be >= 0 s, got "
-                             f"{time_constant_s}")
-        if not (math.isfinite(hold) and 0.0 <= hold < 1.0):
-            raise ValueError(f"steering hold must be in [0, 1) (steering units), got {hold}")
-        self.time_constant_s = float(time_constant_s)
-        self.hold = float(hold)
+        self.time_constant_s = check_steering_filter_s(time_constant_s)
+        self.hold = check_steering_hold(hold)
         self.scale_from_mph = check_steering_scale_from(scale_from_mph)
         period = 1.0 / float(control_hz)
         self.alpha = period / (self.time_constant_s + period)

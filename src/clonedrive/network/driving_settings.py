@@ -63,14 +63,8 @@ class DrivingSettings:
         for name in ("slow_in_curves", "mirror_average"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        for name in ("steering_filter_s", "steering_hold"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) \
-                    or not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
-        if self.steering_hold >= 1.0:
-            raise ValueError(f"steering_hold must be below 1 (steering units), got "
-                             f"{self.steering_hold}")
+        check_steering_filter_s(self.steering_filter_s)
+        check_steering_hold(self.steering_hold)
         check_speed_scale(self.speed_scale)
         check_full_speed_at(self.full_speed_at)
         check_steering_scale_from(self.steering_scale_from_mph)
@@ -124,6 +118,19 @@ def _finite_number(value: object, inside, message: str) -> float:
             or not math.isfinite(value) or not inside(value):
         raise ValueError(f"{message}, got {value!r}")
     return float(value)
+
+
+def check_steering_filter_s(value: object) -> float:
+    """``value`` as ``steering_filter_s``; ``ValueError`` unless a number >= 0 [s]."""
+    return _finite_number(value, lambda number: number >= 0,
+                          "steering_filter_s (the steering low-pass's time constant) must be a "
+                          "number >= 0 s")
+
+
+def check_steering_hold(value: object) -> float:
+    """``value`` as ``steering_hold``; ``ValueError`` unless a number in [0, 1)."""
+    return _finite_number(value, lambda number: 0 <= number < 1,
+                          "steering_hold must be a number in [0, 1) (steering units)")
 
 
 def check_speed_scale(value: object) -> float:

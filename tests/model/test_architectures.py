@@ -188,6 +188,8 @@ def test_unknown_model_name_is_an_error() -> None:
         build_model("resnet")
     with pytest.raises(ValueError, match="data_format 'nhwc'"):
         build_model("seed", data_format="nhwc")
+    with pytest.raises(ValueError, match="data_format 'nhwc'"):
+        build_model("fast", data_format="nhwc")
 
 
 def test_channel_orders_compute_the_same_function() -> None:

@@ -125,7 +125,7 @@ def shade(
     boundary = top_x[:, None] + (bottom_x - top_x)[:, None] * fraction  # (k, H)
     inside = np.arange(width, dtype=np.float32)[None, None, :] < boundary[:, :, None]
     inside ^= np.asarray(right_side, dtype=bool)[shadowed][:, None, None]
-    for number, index in enumerate(shadowed):  # OpenCV's masked copy: 4x numpy's copyto
+    for number, index in enumerate(shadowed):  # OpenCV's masked copy beats copyto(where=)
         dark = cv2.LUT(images[index, first:end],
                        _scale_table(brightness[index] * darkness[index]))
         cv2.copyTo(dark, inside[number].view(np.uint8), out[index, first:end])

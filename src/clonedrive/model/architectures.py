@@ -83,12 +83,16 @@ def _crop(inputs, crop_top_px: int = CROP_TOP_PX):
                              name="crop")(inputs)
 
 
-def _to_data_format(x, data_format: str):
-    """Move channels first (a Permute layer) if the convolutions run channels-first."""
+def _check_data_format(data_format: str) -> None:
     if data_format not in DATA_FORMATS:
         raise ValueError(
             f"data_format {data_format!r}; expected one of: {', '.join(DATA_FORMATS)}"
         )
+
+
+def _to_data_format(x, data_format: str):
+    """Move channels first (a Permute layer) if the convolutions run channels-first."""
+    _check_data_format(data_format)
     if data_format == "channels_first":
         return layers.Permute((3, 1, 2), name="channels_first")(x)
     return x
@@ -224,6 +228,7 @@ def build_fast(
     Conv2D 32 3x3 stride (1, 2) -> 10x38 -> Conv2D 32 3x3 stride (2, 2) -> 4x18 -> Flatten ->
     Dense 32 -> Dense 1; ReLU.
     """
+    _check_data_format(data_format)
     seeds = _Seeds(seed)
     inputs = _frame_input()
     x = _crop(inputs, crop_top_px)

@@ -46,8 +46,7 @@ def lead(runs: list[dict], recipe: dict | None = None) -> str:
     figures = run_figures(runs)
     speeds = sorted({float(run["speed_mph"]) for run in runs
                      if isinstance(run.get("speed_mph"), int | float)})
-    caps = (f"{speeds[0]:g}" if len(speeds) == 1 else
-            f"{', '.join(f'{s:g}' for s in speeds[:-1])} and {speeds[-1]:g}") if speeds else "?"
+    caps = fmt.listed([f"{speed:g}" for speed in speeds]) if speeds else "?"
     text = (f"**{figures['clean_laps']} laps clean** "
             f"({fmt.plural(figures['interventions'], 'intervention')}) "
             f"at set speeds of {caps} mph")

@@ -163,8 +163,7 @@ def _steering_text(report: dict) -> str:
                      f"{float(report['steering_hold']):g} of the wheel")
     if not steps:
         return ""
-    listed = steps[0] if len(steps) == 1 else ", ".join(steps[:-1]) + " and " + steps[-1]
-    return (" **The steering was smoothed**: the network's prediction was " + listed
+    return (" **The steering was smoothed**: the network's prediction was " + fmt.listed(steps)
             + " (so the smoothness figures are not drive.py's).")
 
 

@@ -5,11 +5,12 @@ Run: python benchmarks/fast_layout.py [--batch-size 256] [--rounds 5] [--steps 8
 ``fast`` (``best``'s network: speed head, 60-row crop) as the package builds it now, with the
 channels moved first on the uint8 crop and the pooling in the convolutions' layout, against the
 same network in the layer order it had up to 2026-12-06 (Rescaling and a channels-last pooling
-ahead of the Permute), built here as the reference with the same weights. Both train with
-``train_on_batch`` (Adam, MSE on both heads) and predict on the same random uint8 frames, in
-interleaved rounds; each one's best round counts (load from other processes only ever slows a
-round down), and the median of the per-round ratios is printed too. The largest difference
-between the two networks' predictions shows they compute the same function.
+ahead of the Permute), built here as the reference in front of the same layers and weights
+from the first convolution on. Both train with ``train_on_batch`` (Adam, MSE on both heads)
+and predict on the same random uint8 frames, in interleaved rounds; each one's best round
+counts (load from other processes only ever slows a round down), and the median of the
+per-round ratios is printed too. The largest difference between the two networks' predictions
+shows they compute the same function.
 
 Ends with one JSON line: ``train_speedup`` and ``predict_speedup`` (reference time over the
 package's, > 1 is faster), their medians, the step times in ms and ``max_abs_diff``.
@@ -23,24 +24,19 @@ import statistics
 import time
 
 
-def _previous_fast(keras, crop_top_px: int):
-    """``fast`` in the layer order it had before, with the package's layer names."""
-    from clonedrive.network.crop import CROP_BOTTOM_PX
-
+def _in_previous_order(keras, model):
+    """``model``'s own layers from the first convolution on (the same weights), after the
+    preprocessing in ``fast``'s previous order: scaled, pooled channels-last, then Permute."""
     layers = keras.layers
     inputs = keras.Input(shape=(160, 320, 3), dtype="uint8", name="image_rgb")
-    x = layers.Cropping2D(((crop_top_px, CROP_BOTTOM_PX), (0, 0)), name="crop")(inputs)
-    x = layers.Rescaling(1.0 / 127.5, offset=-1.0, name="normalise")(x)
-    x = layers.AveragePooling2D(pool_size=(2, 2), name="downsample")(x)
-    x = layers.Permute((3, 1, 2), name="channels_first")(x)
-    for index, (filters, size, stride) in enumerate(
-            [(16, 5, (2, 2)), (32, 3, (1, 2)), (32, 3, (2, 2))], start=1):
-        x = layers.Conv2D(filters, size, strides=stride, activation="relu",
-                          data_format="channels_first", name=f"conv{index}")(x)
-    x = layers.Flatten(name="flatten")(x)
-    x = layers.Dense(32, activation="relu", name="dense1")(x)
-    return keras.Model(inputs, [layers.Dense(1, name="steering")(x),
-                                layers.Dense(1, name="target_speed")(x)], name="fast_previous")
+    x = layers.Cropping2D(model.get_layer("crop").cropping)(inputs)
+    x = layers.Rescaling(1.0 / 127.5, offset=-1.0)(x)
+    x = layers.AveragePooling2D(pool_size=(2, 2))(x)
+    x = layers.Permute((3, 1, 2))(x)
+    for name in ("conv1", "conv2", "conv3", "flatten", "dense1"):
+        x = model.get_layer(name)(x)
+    return keras.Model(inputs, [model.get_layer(name)(x) for name in ("steering", "target_speed")],
+                       name="fast_previous")
 
 
 def _seconds_per_call(function, steps: int) -> float:
@@ -72,8 +68,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     keras = import_keras()
     package = build_model("fast", seed=0, speed_head=True, crop_top_px=60)
-    previous = _previous_fast(keras, 60)
-    previous.set_weights(package.get_weights())
+    previous = _in_previous_order(keras, package)
     rng = np.random.default_rng(0)
     frames = rng.integers(0, 256, (args.batch_size, 160, 320, 3), dtype=np.uint8)
     difference = max(float(np.max(np.abs(np.asarray(a) - np.asarray(b)))) for a, b in zip(

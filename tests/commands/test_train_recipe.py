@@ -114,6 +114,22 @@ def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
                  "--out", str(out)]) == 1
 
 
+def test_recipe_calm_trains_three_stages_each_from_the_one_before(tmp_path: Path):
+    """[[finetune]] tables: one stage each; the stage between trains into stage2/."""
+    out = tmp_path / "run"
+    assert main(["train", str(LAKE), "--recipe", "calm", "--epochs", "1", "--batch-size", "64",
+                 "--no-h5", "--out", str(out), "--json"]) == 0
+    base, middle, final = (json.loads((folder / "config.json").read_text())
+                           for folder in (out / "base", out / "stage2", out))
+    assert middle["init_from"] == str(out / "base" / "model.keras")
+    assert final["init_from"] == str(out / "stage2" / "model.keras")
+    assert [config["consistency"] for config in (base, middle, final)] == [0, 60, 60]
+    assert [config["epochs"] for config in (base, middle, final)] == [1, 2, 1]
+    assert [config["batch_size"] for config in (base, middle, final)] == [64, 64, 64]
+    assert stored_settings(out / "model.keras").steering_hold == 0.004
+    assert read_notes(out / "model.keras")["recipe"] == {"name": "calm", "version": 1}
+
+
 def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
         tmp_path: Path, capsys):
     """The second stage takes the first one's decoded images (here a memmap) instead of

@@ -117,7 +117,7 @@ def test_cli_train_folders_with_block_split(damaged_recordings, tmp_path: Path, 
     ])
     assert code == 0
     # --epochs sets the default recipe's first stage; its fine-tune keeps its own epochs.
-    finetune_epochs = load_recipe_file("best").finetune["epochs"]
+    finetune_epochs = load_recipe_file("best").finetune[-1]["epochs"]
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["epochs_done"] == finetune_epochs and summary["split"] == "blocks"
     assert summary["skipped_rows"] == {"image_missing": 1}

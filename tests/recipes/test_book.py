@@ -3,6 +3,7 @@ naming the file and the key."""
 
 from __future__ import annotations
 
+import dataclasses
 from importlib import resources
 
 import pytest
@@ -15,6 +16,7 @@ from clonedrive.recipes.book import (
     is_whole_recipe,
     load_recipe_file,
 )
+from clonedrive.recipes.training import stage_dirs, train_stages
 
 
 def _text(name: str) -> str:
@@ -88,28 +90,33 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
         recipe.data_recipe_without_data()
 
 
-@pytest.mark.parametrize("edit, message", [
-    (("[train]", "[train]\nwarp = 9"), "warp"),
-    (("steering_hold = 0.005", "steering_hold = 2.0"), "steering_hold"),
-    (('name = "best"', 'name = ""'), "needs a name"),
-    (("version = 5", "version = 0"), "version"),
-    (("laps = 3", "laps = 0"), "laps"),
-    (('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
-    (("correction = 0.054", "correction = 7"), "correction"),
-    (("speeds_mph = [15, 30]", "speeds_mph = [15, 300]"), "evaluate"),
-    (("[recipe]", "[recipes]"), "recipes"),
-    (("[[recording]]", "[[recording]]\npath = 'x'"), "path and recording settings"),
+@pytest.mark.parametrize("name, edit, message", [
+    ("best", ("[train]", "[train]\nwarp = 9"), "warp"),
+    ("best", ("steering_hold = 0.005", "steering_hold = 2.0"), "steering_hold"),
+    ("best", ('name = "best"', 'name = ""'), "needs a name"),
+    ("best", ("version = 5", "version = 0"), "version"),
+    ("best", ("laps = 3", "laps = 0"), "laps"),
+    ("best", ('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
+    ("best", ("correction = 0.054", "correction = 7"), "correction"),
+    ("best", ("speeds_mph = [15, 30]", "speeds_mph = [15, 300]"), "evaluate"),
+    ("best", ("[recipe]", "[recipes]"), "recipes"),
+    ("best", ("[[recording]]", "[[recording]]\npath = 'x'"), "path and recording settings"),
+    # [[finetune]] tables are checked one by one, naming the table
+    ("calm", ("epochs = 1             #", "warp = 2\nepochs = 1 #"),
+     r"\[\[finetune\]\] #2: .*warp"),
+    ("calm", ("[[finetune]]\nepochs = 2", "[[finetune]]\nepochs = 0"),
+     r"\[\[finetune\]\] #1: .*epochs"),
 ])
-def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, edit, message):
+def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, name, edit, message):
     path = tmp_path / "bad.toml"
-    path.write_text(_text("best").replace(*edit, 1), encoding="utf-8")
+    path.write_text(_text(name).replace(*edit, 1), encoding="utf-8")
     with pytest.raises(ValueError, match=message) as caught:
         load_recipe_file(path)
     assert "bad.toml" in str(caught.value)
 
 
 def test_unknown_recipe_names_the_built_in_ones():
-    with pytest.raises(FileNotFoundError, match="best, writeup"):
+    with pytest.raises(FileNotFoundError, match="best, calm, writeup"):
         load_recipe_file("bestest")
 
 
@@ -118,3 +125,30 @@ def test_not_toml_is_refused(tmp_path):
     path.write_text("[recipe\nname=", encoding="utf-8")
     with pytest.raises(ValueError, match="not valid TOML"):
         load_recipe_file(path)
+
+
+def test_calm_is_best_with_two_consistency_stages_and_a_narrower_hold():
+    best, calm = load_recipe_file("best"), load_recipe_file("calm")
+    assert calm.recordings == best.recordings and calm.data_table == best.data_table
+    assert calm.evaluation == best.evaluation
+    stages = train_stages(calm)
+    assert stages[0] == train_stages(best)[0]
+    assert [(stage.epochs, stage.learning_rate, stage.consistency) for stage in stages[1:]] == [
+        (2, 0.0005, 60), (1, 0.0005, 60)]  # the last stage keeps the one before's settings
+    assert calm.driving == dataclasses.replace(best.driving, steering_hold=0.004)
+
+
+def test_a_finetune_that_is_not_a_table_is_refused(tmp_path):
+    path = tmp_path / "bad.toml"
+    text = _text("best")
+    without = text[:text.index("[finetune]")] + text[text.index("[drive]"):]
+    path.write_text('finetune = "x"\n' + without, encoding="utf-8")
+    with pytest.raises(ValueError, match="must be a table"):
+        load_recipe_file(path)
+
+
+def test_each_stage_trains_in_its_own_folder(tmp_path):
+    assert stage_dirs(tmp_path, 1) == [tmp_path]
+    assert stage_dirs(tmp_path, 2) == [tmp_path / "base", tmp_path]
+    assert stage_dirs(tmp_path, 4) == [tmp_path / "base", tmp_path / "stage2",
+                                       tmp_path / "stage3", tmp_path]

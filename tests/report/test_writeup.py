@@ -336,9 +336,18 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
     assert [row[0] for row in epochs] == ["1 (base)", "2 (fine-tune)"]
     assert [row[-1] for row in epochs] == ["", "best"]  # model.keras is the fine-tune's
-    assert "the epochs of both stages in a row" in training
+    assert "Training ran in 2 stages (the recipe's `[finetune]`)" in training
     assert "at epoch 2 (random split)" in result.markdown_path.read_text(encoding="utf-8")
     # Training's own loss.png holds the second stage only; the report plots both.
     plotted = tmp_path / "report" / "report" / "loss.png"
     assert plotted.is_file()
     assert plotted.read_bytes() != (run / "train" / "loss.png").read_bytes()
+    # [[finetune]] tables: a stage between the first and the last trains in stage2/.
+    shutil.copytree(run / "train" / "base", run / "train" / "stage2")
+    result = write_report(run, tmp_path / "report3")
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    training = _section(markdown, SECTION_TITLES["training"])
+    epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
+    assert [row[0] for row in epochs] == ["1 (base)", "2 (stage2)", "3 (fine-tune)"]
+    assert "Training ran in 3 stages" in training and "1 epoch(s) into `stage2/`" in training
+    assert "1 epoch from scratch (`base/`), then a fine-tune of 2 epochs" in markdown

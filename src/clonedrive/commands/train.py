@@ -23,7 +23,8 @@ HELP = "train a Keras steering network on recordings (folders, with a recipe's s
 DESCRIPTION = (
     "Train a network that predicts steering (and with a speed head the expert's target speed) "
     "from one 160x320 RGB camera frame. The settings come from a recipe (--recipe, default "
-    "'best'; 'writeup' is the seed write-up's): the network, epochs, learning rate, crop, "
+    "'best'; 'calm' is calmer for more training, 'writeup' the seed write-up's): the network, "
+    "epochs, learning rate, crop, "
     "side-camera correction, and how the model is to be driven, which is stored in the model "
     "file. Options override it one by one. Data comes from recording folders DIR ... (center + "
     "side cameras, mirrored copies), from the recipe's own recordings (--data FOLDER holding "
@@ -56,9 +57,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dirs", nargs="*", metavar="DIR",
                         help="recording folders (driving_log.csv + IMG/), default recipe each")
     parser.add_argument("--recipe", default=None, metavar="NAME|FILE",
-                        help="a built-in recipe (best, writeup) or a recipe file: the training "
-                             "and driving settings, and with no DIRs the data (default: best); "
-                             "or a data recipe file (its recordings, with best's settings)")
+                        help="a built-in recipe (best, calm, writeup) or a recipe file: the "
+                             "training and driving settings, and with no DIRs the data "
+                             "(default: best); or a data recipe file (its recordings, with "
+                             "best's settings)")
     parser.add_argument("--data", type=Path, default=None, metavar="FOLDER",
                         help="the folder holding a recipe's recordings by name (no DIRs)")
     parser.add_argument("--out", type=Path, required=True, help="run folder to write")

@@ -30,6 +30,7 @@ Layout (every table but ``[recipe]`` and ``[[recording]]`` is optional)::
     [finetune]               # a second stage from the first one's model (recipes.training)
     epochs = 1
     consistency = 30
+                             # or [[finetune]] tables: one more stage each, from the one before
 
     [drive]                  # DrivingSettings fields, stored in the trained model's file
     mirror_average = true
@@ -58,7 +59,7 @@ from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reje
 from clonedrive.network.driving_settings import DrivingSettings
 
 #: The recipes that ship with clonedrive (``<name>.toml`` in this package).
-BUILT_IN = ("best", "writeup")
+BUILT_IN = ("best", "calm", "writeup")
 #: What ``clonedrive demo`` and ``clonedrive train`` use when given no recipe.
 DEFAULT_RECIPE = "best"
 #: Recipe files larger than this are refused (they are a few kilobytes).
@@ -101,8 +102,9 @@ class RecipeFile:
     data_table: dict  #: ``defaults`` and ``recording`` as data.recipe reads them
     base_dir: Path  #: where relative ``path``s are taken from
     train: dict = field(default_factory=dict)  #: TrainConfig fields
-    #: TrainConfig fields of a second stage from the first's model (recipes.training)
-    finetune: dict = field(default_factory=dict)
+    #: TrainConfig fields of each further stage, each from the one before's model
+    #: (recipes.training): one per ``[[finetune]]`` table, or the one ``[finetune]`` table
+    finetune: tuple[dict, ...] = ()
     driving: DrivingSettings = DrivingSettings()
     evaluation: tuple[dict, ...] = ()  #: EvalConfig fields per group
     measured: dict = field(default_factory=dict)
@@ -222,7 +224,7 @@ def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) ->
     recipe = RecipeFile(
         name=name.strip(), version=version, source=source, text=text,
         recordings=recordings, data_table=data_table, base_dir=Path(base_dir).absolute(),
-        train=_table(data, "train", source), finetune=_table(data, "finetune", source),
+        train=_table(data, "train", source), finetune=_finetune(data, source),
         evaluation=_evaluation(data, source),
         driving=DrivingSettings.from_dict(_table(data, "drive", source), f"{source}: [drive]"),
         measured=_table(data, "measured", source), summary=str(identity.get("summary", "")),
@@ -308,6 +310,16 @@ def _floats(value):
     if isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     return value
+
+
+def _finetune(data: dict, source: str) -> tuple[dict, ...]:
+    """The fine-tune stages: one ``[finetune]`` table, or ``[[finetune]]`` tables in order."""
+    value = data.get("finetune", {})
+    if isinstance(value, list) and value and all(isinstance(stage, dict) for stage in value):
+        return tuple(dict(stage) for stage in value)
+    if not isinstance(value, dict):
+        raise ValueError(f"{source}: [finetune] must be a table, or [[finetune]] tables")
+    return (dict(value),) if value else ()
 
 
 def _table(data: dict, key: str, source: str) -> dict:

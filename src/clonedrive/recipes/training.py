@@ -1,10 +1,12 @@
-"""A recipe's training, in one or two stages.
+"""A recipe's training, in stages.
 
 A recipe's ``[train]`` table is the first stage. An optional ``[finetune]`` table is a second
 stage that starts from the first stage's best model, with ``[finetune]``'s settings over
 ``[train]``'s (the lab notes' recipe: a plain start, then a short fine-tune with the
-consistency penalty at a lower learning rate). With two stages the first one's run folder is
-``OUT/base/`` and the second one's ``OUT/`` itself, so ``OUT/model.keras`` is always the model.
+consistency penalty at a lower learning rate). ``[[finetune]]`` tables instead make one stage
+each, in order, each from the best model of the one before and with its settings over that
+stage's. The first stage's run folder is ``OUT/base/``, the last one's ``OUT/`` itself (so
+``OUT/model.keras`` is always the model) and those between ``OUT/stage2/``, ``OUT/stage3/``, ...
 
 A stage whose run folder holds a finished run (``state.json`` with all its epochs) is reused;
 one with fewer epochs done is resumed from its ``last.keras``.
@@ -16,28 +18,34 @@ import dataclasses
 import json
 from pathlib import Path
 
-#: Where the first stage of a two-stage recipe trains, inside the training folder.
+#: Where the first stage of a recipe with a fine-tune trains, inside the training folder.
 BASE_STAGE_DIR = "base"
+#: Where stage N (2, 3, ...) trains when it is not the last: f"{MIDDLE_STAGE_DIR}{N}".
+MIDDLE_STAGE_DIR = "stage"
 
 
 def train_stages(recipe, **overrides) -> list:
     """The TrainConfig of each stage of ``recipe``: ``[train]`` with ``overrides`` on top,
-    then, if the recipe has one, ``[finetune]`` over that (its ``init_from`` is set when the
-    first stage has run)."""
-    first = recipe.train_config(**overrides)
-    if not recipe.finetune:
-        return [first]
-    try:
-        second = dataclasses.replace(first, **recipe.finetune)
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"{recipe.source}: [finetune]: {error}") from None
-    return [first, second]
+    then each fine-tune table over the stage before it (a stage's ``init_from`` is set when the
+    stage before it has run)."""
+    stages = [recipe.train_config(**overrides)]
+    for number, table in enumerate(recipe.finetune, start=1):
+        try:
+            stages.append(dataclasses.replace(stages[-1], **table))
+        except (TypeError, ValueError) as error:
+            where = "[finetune]" if len(recipe.finetune) == 1 else f"[[finetune]] #{number}"
+            raise ValueError(f"{recipe.source}: {where}: {error}") from None
+    return stages
 
 
 def stage_dirs(out_dir: str | Path, count: int) -> list[Path]:
-    """The run folder of each of ``count`` stages trained into ``out_dir``."""
+    """The run folder of each of ``count`` stages trained into ``out_dir``: ``base/``, then
+    ``stage2/`` ... for the stages between, and ``out_dir`` itself for the last."""
     out = Path(out_dir)
-    return [out / BASE_STAGE_DIR, out] if count == 2 else [out]
+    if count == 1:
+        return [out]
+    middle = [out / f"{MIDDLE_STAGE_DIR}{number}" for number in range(2, count)]
+    return [out / BASE_STAGE_DIR, *middle, out]
 
 
 def run_stages(stages: list, data, out_dir: str | Path, *, notes: dict | None = None,

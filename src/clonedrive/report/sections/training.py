@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 from clonedrive.base.udacity_spec import CONTROL_HZ
@@ -55,31 +56,30 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(ctx.note(f"No `config.json` in `{train}`: settings unknown."))
     section.blocks.append(Paragraph(_split_text(kind, split.get("description"))))
 
-    base_history = _base_stage_history(train)
+    earlier = _earlier_stages(train)
+    base_history = [row for _, rows in earlier for row in rows]
     history = _numbered_on(base_history, history)  # one numbering for headline, table and plot
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        base = len(base_history)
+        base = len(earlier[0][1]) if earlier else 0
+        tuned = len(base_history) - base + len(history)
         stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
-                  f"{fmt.plural(len(history), 'epoch')}" if base
+                  f"{fmt.plural(tuned, 'epoch')}" if base
                   else fmt.plural(len(history), 'epoch'))
         ctx.headline(
             f"Training: {stages}, best validation loss "
             f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
         if base:
-            section.blocks.append(Paragraph(
-                f"Training ran in two stages (the recipe's `[finetune]`): {base} epoch(s) into "
-                "`base/`, then the settings above from that stage's best model. The table and "
-                "the plot number the epochs of both stages in a row."))
+            section.blocks.append(Paragraph(_stages_text(earlier)))
         columns = [c for c in ("loss", "val_loss", "mse", "val_mse", "seconds")
                    if any(c in row for row in base_history + history)]
         headers = ("epoch", *[{"loss": "training loss", "val_loss": "validation loss",
                                "mse": "training MSE", "val_mse": "validation MSE",
                                "seconds": "seconds"}[c] for c in columns], "")
         table_rows = tuple(
-            (f"{row['epoch']} (base)", *[_cell(row, c) for c in columns], "")
-            for row in base_history) + tuple(
+            (f"{row['epoch']} ({name})", *[_cell(row, c) for c in columns], "")
+            for name, rows in earlier for row in rows) + tuple(
             (str(row["epoch"]) + (" (fine-tune)" if base else ""),
              *[_cell(row, c) for c in columns], "best" if row is best else "")
             for row in history)
@@ -91,7 +91,7 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(headers, table_rows, align="l" + "r" * len(columns) + "l"))
     else:
         section.blocks.append(ctx.note(f"No `history.csv` in `{train}`: no loss table."))
-    figure_path = _loss_figure(ctx, train, base_history, history, settings)
+    figure_path = _loss_figure(ctx, train, earlier, history, settings)
     if figure_path is not None:
         section.blocks.append(Figure(figure_path, "Training and validation loss per epoch."))
     return [section]
@@ -117,21 +117,32 @@ def _split_text(kind: str | None, description: str | None) -> str:
     return text
 
 
-def _loss_figure(ctx: ReportContext, train, base_history: list[dict], history: list[dict],
-                 settings: dict | None):
-    """The loss plot: training's own ``loss.png`` for one stage; for two, a plot of both
-    stages' epochs in a row (training's plot holds the second stage only); None without a
-    history."""
+def _stages_text(earlier: list[tuple[str, list[dict]]]) -> str:
+    """What a multi-stage training did, for the stages before the last ``earlier``."""
+    into = [f"{len(rows)} epoch(s) into `{name}/`" for name, rows in earlier]
+    tables = "`[finetune]`" if len(earlier) == 1 else "`[[finetune]]` tables"
+    return (f"Training ran in {len(earlier) + 1} stages (the recipe's {tables}): "
+            f"{fmt.listed(into)}, each stage from the best model of the one before, the last "
+            "with the settings above. The table and the plot number the epochs of all stages "
+            "in a row.")
+
+
+def _loss_figure(ctx: ReportContext, train, earlier: list[tuple[str, list[dict]]],
+                 history: list[dict], settings: dict | None):
+    """The loss plot: training's own ``loss.png`` for one stage; for more, a plot of every
+    stage's epochs in a row (training's plot holds the last stage only), the fine-tune marked
+    where it starts; None without a history."""
     loss_png = ctx.run_file(train, "loss.png")
-    if loss_png is not None and not (base_history and history):
+    if loss_png is not None and not (earlier and history):
         return copy_figure(loss_png, ctx.figures_dir, "loss.png")
     if not history:
         return None
     from clonedrive.model.checkpoints import plot_loss
 
+    base_history = [row for _, rows in earlier for row in rows]
     return plot_loss(base_history + history, ctx.figures_dir / "loss.png",
                      consistency=bool((settings or {}).get("consistency")),
-                     second_stage_from=history[0]["epoch"] if base_history else None)
+                     second_stage_from=len(earlier[0][1]) + 1 if earlier else None)
 
 
 def _numbered_on(base_history: list[dict], history: list[dict]) -> list[dict]:
@@ -145,10 +156,21 @@ def _cell(row: dict, column: str) -> str:
     return fmt.num(row.get(column), 1 if column == "seconds" else 4)
 
 
-def _base_stage_history(train) -> list[dict]:
-    """The epochs of a first training stage in ``TRAIN/base/`` (recipes.training), [] if
-    none or unreadable."""
-    try:
-        return read_history(train / "base" / HISTORY_NAME)
-    except (OSError, ValueError):
-        return []
+def _earlier_stages(train) -> list[tuple[str, list[dict]]]:
+    """``(folder name, epochs)`` of each training stage before the last (recipes.training):
+    ``TRAIN/base/``, then ``TRAIN/stage2/``, ``TRAIN/stage3/`` ..., up to the first one with
+    no readable epochs, the epochs numbered on in a row; [] without a first stage."""
+    from clonedrive.recipes.training import BASE_STAGE_DIR, MIDDLE_STAGE_DIR
+
+    folders = itertools.chain([BASE_STAGE_DIR], (f"{MIDDLE_STAGE_DIR}{number}"
+                                                 for number in itertools.count(2)))
+    stages: list[tuple[str, list[dict]]] = []
+    for name in folders:
+        try:
+            rows = read_history(train / name / HISTORY_NAME)
+        except (OSError, ValueError):
+            rows = []
+        if not rows:
+            break
+        stages.append((name, _numbered_on([row for _, done in stages for row in done], rows)))
+    return stages

@@ -15,7 +15,9 @@ one with fewer epochs done is resumed from its ``last.keras``.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 #: Where the first stage of a recipe with a fine-tune trains, inside the training folder.
@@ -42,10 +44,17 @@ def stage_dirs(out_dir: str | Path, count: int) -> list[Path]:
     """The run folder of each of ``count`` stages trained into ``out_dir``: ``base/``, then
     ``stage2/`` ... for the stages between, and ``out_dir`` itself for the last."""
     out = Path(out_dir)
-    if count == 1:
-        return [out]
-    middle = [out / f"{MIDDLE_STAGE_DIR}{number}" for number in range(2, count)]
-    return [out / BASE_STAGE_DIR, *middle, out]
+    return [*itertools.islice(earlier_stage_dirs(out), count - 1), out]
+
+
+def earlier_stage_dirs(out_dir: str | Path) -> Iterator[Path]:
+    """The run folders, in order and without end, of the stages before the last of a training
+    into ``out_dir``: ``base/``, ``stage2/``, ``stage3/`` ... (a reader stops at the first one
+    that holds no run)."""
+    out = Path(out_dir)
+    yield out / BASE_STAGE_DIR
+    for number in itertools.count(2):
+        yield out / f"{MIDDLE_STAGE_DIR}{number}"
 
 
 def run_stages(stages: list, data, out_dir: str | Path, *, notes: dict | None = None,

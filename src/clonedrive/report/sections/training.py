@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 
 from clonedrive.base.udacity_spec import CONTROL_HZ
@@ -160,17 +159,18 @@ def _earlier_stages(train) -> list[tuple[str, list[dict]]]:
     """``(folder name, epochs)`` of each training stage before the last (recipes.training):
     ``TRAIN/base/``, then ``TRAIN/stage2/``, ``TRAIN/stage3/`` ..., up to the first one with
     no readable epochs, the epochs numbered on in a row; [] without a first stage."""
-    from clonedrive.recipes.training import BASE_STAGE_DIR, MIDDLE_STAGE_DIR
+    from clonedrive.recipes.training import earlier_stage_dirs
 
-    folders = itertools.chain([BASE_STAGE_DIR], (f"{MIDDLE_STAGE_DIR}{number}"
-                                                 for number in itertools.count(2)))
     stages: list[tuple[str, list[dict]]] = []
-    for name in folders:
+    done: list[dict] = []
+    for folder in earlier_stage_dirs(train):
         try:
-            rows = read_history(train / name / HISTORY_NAME)
+            rows = read_history(folder / HISTORY_NAME)
         except (OSError, ValueError):
             rows = []
         if not rows:
             break
-        stages.append((name, _numbered_on([row for _, done in stages for row in done], rows)))
+        rows = _numbered_on(done, rows)
+        done += rows
+        stages.append((folder.name, rows))
     return stages

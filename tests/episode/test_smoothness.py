@@ -8,7 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from clonedrive.episode.smoothness import FIGURES, smoothness_figures, smoothness_ratios
+from clonedrive.episode.smoothness import (
+    FIGURES,
+    round_figure,
+    smoothness_figures,
+    smoothness_ratios,
+)
 from clonedrive.evaluate.reference import against_expert, expert_reference
 
 HZ = 15.0
@@ -56,6 +61,20 @@ def test_ratios_against_the_expert() -> None:
     ratios = smoothness_ratios(run, expert)
     assert ratios == {f"{name}_ratio": 1.5 for name in FIGURES}
     assert smoothness_ratios(run, {})["steering_rate_per_s_ratio"] is None
+
+
+def test_a_gentle_runs_figures_keep_their_digits_and_so_do_their_ratios() -> None:
+    # A wheel turning 0.0052585 per second, as the expert's on a large gentle loop: four
+    # decimals would keep 0.0053, and a run at twice that would read 1.98x instead of 2.
+    steps = 15 * 60
+    steering = np.arange(steps) * (0.0052585 / HZ)
+    still = np.zeros(steps)
+    expert = smoothness_figures(steering, still, still, still, HZ)
+    assert expert["steering_rate_per_s"] == pytest.approx(0.0052585, rel=1e-5)
+    run = smoothness_figures(2.0 * steering, still, still, still, HZ)
+    assert smoothness_ratios(run, expert)["steering_rate_per_s_ratio"] == 2.0
+    assert round_figure(0.010554466517) == 0.0105545
+    assert round_figure(1234.56789) == 1234.57 and round_figure(0.0) == 0.0
 
 
 def test_the_expert_against_itself_is_one() -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clonedrive.episode.smoothness import smoothness_figures
+from clonedrive.episode.smoothness import round_figure, smoothness_figures
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 #: NVIDIA (Bojarski et al. 2016): each intervention is charged six seconds.
@@ -108,7 +108,7 @@ class RunTrace:
             "autonomy_pct": round(autonomy_pct(interventions, elapsed), 2),
             "mean_abs_cte_m": round(float(cte.mean()) if len(cte) else 0.0, 3),
             "max_abs_cte_m": round(float(cte.max()) if len(cte) else 0.0, 3),
-            "smoothness": round(smoothness(self.steering, self.control_hz), 4),
+            "smoothness": round_figure(smoothness(self.steering, self.control_hz)),
             "mean_speed_mph": round(float(np.mean(self.speed)) if self.speed else 0.0, 2),
             "distance_m": round(self.distance_m, 1),
             "elapsed_s": round(elapsed, 2),

@@ -23,6 +23,15 @@ def num(value, digits: int = 2, missing: str = MISSING) -> str:
     return f"{number:,.{digits}f}"
 
 
+def sig(value, digits: int = 3, missing: str = MISSING) -> str:
+    """``value`` with ``digits`` significant digits (``0.00526``), for figures too small for a
+    fixed number of decimals; ``missing`` as :func:`num`."""
+    if value is None:
+        return missing
+    number = float(value)
+    return f"{number:.{digits}g}" if math.isfinite(number) else missing
+
+
 def signed(value: float, digits: int = 2) -> str:
     """``value`` with its sign always shown (``+0.25``)."""
     return f"{value:+.{digits}f}"

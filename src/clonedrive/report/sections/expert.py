@@ -59,8 +59,8 @@ def build(ctx: ReportContext) -> list[Section]:
         rows.append((fmt.track_label(run), fmt.num(run.get("speed_mph"), 0),
                      fmt.num(run.get("lap_time_s"), 1), fmt.num(expert.get("lap_time_s"), 1),
                      *(fmt.num(run.get(key)) for key, _ in RATIOS),
-                     fmt.num(run.get("steering_rate_per_s"), 3),
-                     fmt.num(expert.get("steering_rate_per_s"), 3)))
+                     fmt.sig(run.get("steering_rate_per_s")),
+                     fmt.sig(expert.get("steering_rate_per_s"))))
     means = {key: _mean(run.get(key) for run in compared) for key, _ in RATIOS}
     rows.append(("mean", "", "", "", *(fmt.num(means[key]) for key, _ in RATIOS), "", ""))
     text = (

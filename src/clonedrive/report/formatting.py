@@ -25,10 +25,13 @@ def num(value, digits: int = 2, missing: str = MISSING) -> str:
 
 def sig(value, digits: int = 3, missing: str = MISSING) -> str:
     """``value`` with ``digits`` significant digits (``0.00526``), for figures too small for a
-    fixed number of decimals; ``missing`` as :func:`num`."""
+    fixed number of decimals; ``missing`` and text that is not a number as :func:`num`."""
     if value is None:
         return missing
-    number = float(value)
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return str(value)
     return f"{number:.{digits}g}" if math.isfinite(number) else missing
 
 

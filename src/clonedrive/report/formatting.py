@@ -12,27 +12,25 @@ MISSING = "–"
 def num(value, digits: int = 2, missing: str = MISSING) -> str:
     """``value`` with ``digits`` decimals and thousands separators; ``missing`` for None,
     NaN or infinity; text that is not a number as it is."""
-    if value is None:
-        return missing
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    if not math.isfinite(number):
-        return missing
-    return f"{number:,.{digits}f}"
+    return _formatted(value, f",.{digits}f", missing)
 
 
 def sig(value, digits: int = 3, missing: str = MISSING) -> str:
     """``value`` with ``digits`` significant digits (``0.00526``), for figures too small for a
     fixed number of decimals; ``missing`` and text that is not a number as :func:`num`."""
+    return _formatted(value, f".{digits}g", missing)
+
+
+def _formatted(value, spec: str, missing: str) -> str:
+    """``value`` in the format ``spec``; ``missing`` for None, NaN or infinity; text that is
+    not a number as it is."""
     if value is None:
         return missing
     try:
         number = float(value)
     except (TypeError, ValueError):
         return str(value)
-    return f"{number:.{digits}g}" if math.isfinite(number) else missing
+    return format(number, spec) if math.isfinite(number) else missing
 
 
 def signed(value: float, digits: int = 2) -> str:

@@ -57,11 +57,11 @@ def build(ctx: ReportContext) -> list[Section]:
 
     earlier = _earlier_stages(train)
     base_history = [row for _, rows in earlier for row in rows]
+    base = len(earlier[0][1]) if earlier else 0  # the first stage's epochs
     history = _numbered_on(base_history, history)  # one numbering for headline, table and plot
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        base = len(earlier[0][1]) if earlier else 0
         tuned = len(base_history) - base + len(history)
         stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
                   f"{fmt.plural(tuned, 'epoch')}" if base
@@ -90,7 +90,7 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(headers, table_rows, align="l" + "r" * len(columns) + "l"))
     else:
         section.blocks.append(ctx.note(f"No `history.csv` in `{train}`: no loss table."))
-    figure_path = _loss_figure(ctx, train, earlier, history, settings)
+    figure_path = _loss_figure(ctx, train, base_history, base, history, settings)
     if figure_path is not None:
         section.blocks.append(Figure(figure_path, "Training and validation loss per epoch."))
     return [section]
@@ -126,22 +126,22 @@ def _stages_text(earlier: list[tuple[str, list[dict]]]) -> str:
             "in a row.")
 
 
-def _loss_figure(ctx: ReportContext, train, earlier: list[tuple[str, list[dict]]],
+def _loss_figure(ctx: ReportContext, train, base_history: list[dict], base: int,
                  history: list[dict], settings: dict | None):
     """The loss plot: training's own ``loss.png`` for one stage; for more, a plot of every
-    stage's epochs in a row (training's plot holds the last stage only), the fine-tune marked
-    where it starts; None without a history."""
+    stage's epochs in a row (``base_history``: the stages before the last; training's plot
+    holds the last stage only), the fine-tune marked where it starts, after the first stage's
+    ``base`` epochs; None without a history."""
     loss_png = ctx.run_file(train, "loss.png")
-    if loss_png is not None and not (earlier and history):
+    if loss_png is not None and not (base_history and history):
         return copy_figure(loss_png, ctx.figures_dir, "loss.png")
     if not history:
         return None
     from clonedrive.model.checkpoints import plot_loss
 
-    base_history = [row for _, rows in earlier for row in rows]
     return plot_loss(base_history + history, ctx.figures_dir / "loss.png",
                      consistency=bool((settings or {}).get("consistency")),
-                     second_stage_from=len(earlier[0][1]) + 1 if earlier else None)
+                     second_stage_from=base + 1 if base else None)
 
 
 def _numbered_on(base_history: list[dict], history: list[dict]) -> list[dict]:

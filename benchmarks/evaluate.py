@@ -1,7 +1,7 @@
 """Closed-loop throughput (rendering included) and drive-server latency.
 
 - Control steps per second of `clonedrive evaluate` with the `fast` model on the lake track, full
-  scenery, one run at a time and 8 runs in lock-step (frames batched through the network).
+  scenery, one run at a time and 8 runs in lock-step (one network call a step, each frame alone).
   Target: >= 150 steps/s (10x real time at 15 Hz).
 - Drive server round trip per telemetry message (decode + predict + reply) with the `seed`
   model over a real socket: median and p99.
@@ -24,7 +24,7 @@ is extra work beside the loop, not part of it.
   built (no scene builds, no map plots) / rendering frames once the scene is built.
 - ``overlap_speedup``: that steady loop with the overlap / without it (median of 3 alternating
   pairs of 10 s runs, one PyTorch thread in both).
-- ``render_beside_network_ratio``: center-camera frames/s while the network predicts batches on
+- ``render_beside_network_ratio``: center-camera frames/s while the network predicts frames on
   a second thread / alone (median of 3 pairs): what sharing the machine's two cores costs the
   rendering by itself, with none of our code in between (the loop's network is busy for part of
   each step, so the loop pays part of it).
@@ -179,7 +179,7 @@ def render_only_steps_per_s(steps: int, track_name: str = "lake", *,
 
 
 def render_beside_network(policy, frames: int = 400) -> tuple[float, float]:
-    """Center-camera frames/s on the lake, (alone, while the network predicts batches of 4 on a
+    """Center-camera frames/s on the lake, (alone, while the network predicts 4 frames a call on a
     second thread): what the two cores' sharing costs the rendering, apart from any of our code
     (the render call releases Python's lock; one PyTorch thread)."""
     import threading

@@ -36,12 +36,13 @@ def test_traced_outputs_equal_predict_on_batch_bit_for_bit(real_frames, architec
         for a, b in zip(got, want, strict=True):
             np.testing.assert_array_equal(a, b)
     assert sorted(forward.traced_shapes) == [(1, 160, 320, 3), (8, 160, 320, 3)]
-    # Through the policy: the same steering and learned speed as the model gives.
+    # Through the policy: the same steering and learned speed as the model gives each frame.
     policy = NetworkPolicy(model)
     for _ in range(2):
         steering, speed = policy.predict(real_frames)
-        want = model.predict_on_batch(real_frames)
-        want_steering = np.asarray(want[0] if speed_head else want)[:, 0]
+        want = [model.predict_on_batch(frame[None]) for frame in real_frames]
+        want_steering = np.concatenate([np.asarray(one[0] if speed_head else one)[:, 0]
+                                        for one in want])
         np.testing.assert_array_equal(steering, np.clip(want_steering, -1, 1))
         assert (speed is not None) == speed_head
 
@@ -142,9 +143,9 @@ def test_traces_are_bounded_and_onnx_is_not_traced(real_frames) -> None:
 
 def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real_frames,
                                                                              tmp_path) -> None:
-    """What evaluate hands its worker processes: the policy's checked traces for every batch it
-    will predict (here up to 3 cars, mirrored: 2, 4 and 6 frames). A fresh process runs them
-    with PyTorch alone, and steers and sets its speed exactly as the Keras model does."""
+    """What evaluate hands its worker processes: the policy's checked trace of the one batch it
+    predicts (a frame and its mirror image: 2 frames). A fresh process runs it with PyTorch
+    alone, and steers and sets its speed exactly as the Keras model does."""
     import pickle
     import subprocess
     import sys
@@ -153,8 +154,8 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
 
     model = build_model("fast", seed=5, speed_head=True)
     policy = NetworkPolicy(model, mirror_average=True)
-    portable = policy.portable(3)
-    assert sorted(portable.traces) == [2, 4, 6]
+    portable = policy.portable()
+    assert sorted(portable.traces) == [2]
     assert portable.output_names == tuple(model.output_names)
     frames = real_frames[:3]
     from clonedrive.base.keras_backend import compute_threads
@@ -183,25 +184,24 @@ def test_a_portable_model_drives_in_a_process_without_keras_to_the_last_bit(real
     for (steering, speed), (want_steering, want_speed) in zip(got, want, strict=True):
         np.testing.assert_array_equal(steering, want_steering)
         np.testing.assert_array_equal(speed, want_speed)
-    with pytest.raises(ValueError, match=r"no trace for a batch of 5 frames \(traced: \[2, 4, 6\]"):
+    with pytest.raises(ValueError, match=r"no trace for a batch of 5 frames \(traced: \[2\]"):
         TracedModel(portable).predict_on_batch(np.concatenate([real_frames[:5]]))
-    # Predictions go in chunks of batch_size frames, each mirrored: 3 frames as 2 + 1, so 4 + 2
-    # to the network. A worker builds its policy with the same options, so it chunks alike.
-    chunked = NetworkPolicy(model, mirror_average=True, batch_size=2)
-    portable = chunked.portable(3)
-    assert sorted(portable.traces) == [2, 4]
-    worker = NetworkPolicy(TracedModel(portable), **chunked.options())
-    for mine, theirs in zip(worker.predict(frames), chunked.predict(frames), strict=True):
+    # Without mirror averaging the one batch is the frame itself.
+    plain = NetworkPolicy(model)
+    portable = plain.portable()
+    assert sorted(portable.traces) == [1]
+    worker = NetworkPolicy(TracedModel(portable), **plain.options())
+    for mine, theirs in zip(worker.predict(frames), plain.predict(frames), strict=True):
         np.testing.assert_array_equal(mine, theirs)
 
 
 def test_a_model_that_does_not_trace_exactly_is_not_made_portable(real_frames) -> None:
     model = untraceable_model()
-    assert NetworkPolicy(model).portable(2) is None  # its workers load the model file instead
+    assert NetworkPolicy(model).portable() is None  # its workers load the model file instead
     pytest.importorskip("onnxruntime")
     from clonedrive.network.onnx_runtime import OnnxModel, onnx_bytes
 
-    assert NetworkPolicy(OnnxModel(onnx_bytes(build_model("fast", seed=1)))).portable(2) is None
+    assert NetworkPolicy(OnnxModel(onnx_bytes(build_model("fast", seed=1)))).portable() is None
 
 
 def test_a_size_this_process_does_not_run_traced_is_not_made_portable(real_frames) -> None:
@@ -209,7 +209,7 @@ def test_a_size_this_process_does_not_run_traced_is_not_made_portable(real_frame
     Keras), the workers must not get a trace for it that passed on other frames: they would
     steer differently from an evaluation in this process."""
     policy = NetworkPolicy(build_model("fast", seed=1))
-    policy.forward._traces[(2, *real_frames.shape[1:])] = None  # found not exact on its frames
-    assert policy.portable(2) is None
-    fresh = NetworkPolicy(build_model("fast", seed=1)).portable(2)
-    assert sorted(fresh.traces) == [1, 2] and all(fresh.traces.values())  # both sizes traced
+    policy.forward._traces[(1, *real_frames.shape[1:])] = None  # found not exact on its frames
+    assert policy.portable() is None
+    fresh = NetworkPolicy(build_model("fast", seed=1)).portable()
+    assert sorted(fresh.traces) == [1] and all(fresh.traces.values())  # its one size traced

@@ -339,7 +339,7 @@ def _add_portable_models(tasks: list[BatchTask], config: BenchConfig, workers: i
             continue
         policy = load_policy(path, trust=config.trust_model, runtime=config.runtime,
                              **config.policy_options())
-        portable = policy.portable(config.batch)
+        portable = policy.portable()
         for index, task in enumerate(tasks):
             if task.kind == "model" and task.model == path:
                 tasks[index] = replace(task, portable=portable)

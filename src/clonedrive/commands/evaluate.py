@@ -55,7 +55,8 @@ def add_arguments(parser) -> None:
                              "network looks) onto the frames")
     add_steering_arguments(parser)
     parser.add_argument("--batch", type=int, default=d.batch,
-                        help="runs driven in lock-step with their frames batched")
+                        help="runs driven in lock-step by one process (each frame is still "
+                             "predicted alone: the figures do not depend on it)")
     parser.add_argument("--workers", type=int, default=d.workers,
                         help="worker processes the runs are spread over, each driving its share "
                              "in lock-step (default: one per CPU core)")

@@ -189,6 +189,8 @@ class NetworkPolicy:
     mirror's steering negated, its target speed as it is): the part of the network's
     frame-to-frame noise that the two views do not share cancels, for twice the inference
     (:func:`mirrored_mean`).
+
+    Each frame is predicted alone (:meth:`predict`), as drive.py predicts its one frame.
     """
 
     def __init__(
@@ -201,7 +203,6 @@ class NetworkPolicy:
         ki: float = SPEED_KI,
         curve_gain: float = 1.5,
         min_speed_fraction: float = 0.4,
-        batch_size: int = 64,
         steering_filter_s: float = 0.0,
         steering_hold: float = 0.0,
         mirror_average: bool = False,
@@ -230,7 +231,6 @@ class NetworkPolicy:
         self.slow_in_curves = bool(slow_in_curves)
         self.curve_gain = float(curve_gain)
         self.min_speed_fraction = float(min_speed_fraction)
-        self.batch_size = int(batch_size)
         self.controller = SpeedController(set_speed_mph, kp=kp, ki=ki)
         #: Frames whose steering prediction was NaN or infinite (driven straight / at full
         #: lock instead), over this policy's life; the drive server logs it.
@@ -270,7 +270,7 @@ class NetworkPolicy:
         process's policy for the same model drive as this one does."""
         return {"kp": self.controller.kp, "ki": self.controller.ki,
                 "curve_gain": self.curve_gain, "min_speed_fraction": self.min_speed_fraction,
-                "batch_size": self.batch_size, **self.driving_settings().options()}
+                **self.driving_settings().options()}
 
     def driving_settings(self) -> DrivingSettings:
         """What stands between this policy's network and the controls: each of
@@ -278,19 +278,14 @@ class NetworkPolicy:
         return DrivingSettings(**{field.name: getattr(self, field.name)
                                   for field in dataclasses.fields(DrivingSettings)})
 
-    def portable(self, cars: int) -> PortableModel | None:
-        """This policy's model as checked traces for every batch it predicts when it drives up to
-        ``cars`` cars in lock-step (fewer as runs finish; in chunks of ``batch_size`` frames,
-        each twice as many with ``mirror_average``), for a worker process to run without
-        Keras (:class:`~clonedrive.network.traced.TracedModel`). None where the model does not
-        run traced (ONNX Runtime, a model PyTorch cannot trace exactly)."""
+    def portable(self) -> PortableModel | None:
+        """This policy's model as a checked trace of the one batch it predicts (a frame, with
+        its mirror image under ``mirror_average``), for a worker process to run without Keras
+        (:class:`~clonedrive.network.traced.TracedModel`). None where the model does not run
+        traced (ONNX Runtime, a model PyTorch cannot trace exactly)."""
         if not isinstance(self.forward, TracedForward):
             return None
-        sizes = set()
-        for count in range(1, int(cars) + 1):  # as predict() cuts and _predict() mirrors
-            sizes.update([min(count, self.batch_size), count % self.batch_size])
-        factor = 2 if self.mirror_average else 1
-        return self.forward.portable(sorted(size * factor for size in sizes if size > 0))
+        return self.forward.portable([2 if self.mirror_average else 1])
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
                          learned_speed_mph: float | None = None) -> float:
@@ -331,7 +326,14 @@ class NetworkPolicy:
 
     def predict(self, images: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``(steering (N,), learned target speed [mph] (N,) or None without a speed head)`` for
-        a batch of uint8 RGB frames ``(N, 160, 320, 3)``."""
+        N uint8 RGB frames ``(N, 160, 320, 3)``.
+
+        Each frame goes through the network alone, as drive.py's one frame does: a batched
+        convolution rounds its last bits differently at each batch size, and a closed loop
+        amplifies them, so a car driven beside others (in lock-step, in a worker process's
+        share of the runs, whose size follows the machine's core count) would drive a
+        slightly different path than the same car driven alone. This way a frame's prediction
+        depends on that frame only."""
         images = np.asarray(images)
         if images.ndim != 4 or images.shape[1:] != IMAGE_SHAPE or images.dtype != np.uint8:
             raise ValueError(
@@ -341,15 +343,12 @@ class NetworkPolicy:
         if len(images) == 0:
             empty = np.zeros(0, dtype=np.float32)
             return empty, (empty.copy() if self.speed_head else None)
-        chunks = [
-            self._predict(images[start : start + self.batch_size])
-            for start in range(0, len(images), self.batch_size)
-        ]
-        self.last_nonfinite = np.concatenate([chunk[2] for chunk in chunks])
-        steering = np.concatenate([chunk[0] for chunk in chunks])
+        alone = [self._predict(images[index : index + 1]) for index in range(len(images))]
+        self.last_nonfinite = np.concatenate([frame[2] for frame in alone])
+        steering = np.concatenate([frame[0] for frame in alone])
         if not self.speed_head:
             return steering, None
-        return steering, np.concatenate([chunk[1] for chunk in chunks])
+        return steering, np.concatenate([frame[1] for frame in alone])
 
     def _predict(self, images: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:

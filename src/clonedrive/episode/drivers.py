@@ -37,8 +37,9 @@ class ExpertDriver:
 
 
 class PolicyDriver:
-    """A :class:`~clonedrive.drivers.policy.NetworkPolicy` driving N cars: one batched
-    prediction for all their center frames per step, and a PI speed controller per car holding
+    """A :class:`~clonedrive.drivers.policy.NetworkPolicy` driving N cars: one prediction
+    call for all their center frames per step (each frame through the network alone, so a
+    car's steering does not depend on the others'), and a PI speed controller per car holding
     that car's set speed (``set_speeds_mph[car]``; with a speed head the learned target speed
     capped by it, with the policy's ``slow_in_curves`` lower in bends).
 

@@ -14,7 +14,7 @@ The pieces:
   fills the episode's :class:`~clonedrive.episode.trace.RunTrace` and stops it when a rule says
   so (:attr:`Episode.stopped`).
 - a **driver** maps observations to controls. A :class:`Driver` acts for several cars at once
-  (one batched network call for N frames: :class:`~clonedrive.episode.drivers.PolicyDriver`);
+  (one network call for N frames: :class:`~clonedrive.episode.drivers.PolicyDriver`);
   a :class:`CarDriver` drives one car (the expert, a remote drive server, a person) and
   :class:`PerCar` makes a :class:`Driver` of one per car. ``act`` returns :class:`Decision`
   objects (or plain :class:`~clonedrive.world.vehicle.Controls`).
@@ -43,10 +43,10 @@ would have alone.
 ``Runner(..., overlap=True)`` keeps that order for every car but uses a second core: the cars
 are split into two fixed halves (even and odd numbers), and while one half's simulators step
 and render on the calling thread, a helper thread asks the driver (and labeller) for the other
-half's decisions (a network's batched prediction). Rendering and PyTorch both release Python's
-lock, so the two run at once. Each car sees the same observations and decisions as without
-overlap; only the network's batches are halves. A driver used so must allow ``act`` for some
-cars while ``reset``/``intervened`` run for others (``PolicyDriver`` and ``PerCar`` do).
+half's decisions (a network's prediction). Rendering and PyTorch both release Python's lock, so
+the two run at once. Each car sees the same observations and decisions as without overlap. A
+driver used so must allow ``act`` for some cars while ``reset``/``intervened`` run for others
+(``PolicyDriver`` and ``PerCar`` do).
 """
 
 from __future__ import annotations

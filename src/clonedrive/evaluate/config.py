@@ -41,7 +41,7 @@ class EvalConfig:
     #: as the policy drives (the model file's own setting)
     slow_in_curves: bool | None = None
     scenery: bool = True
-    batch: int = 8  #: runs driven in lock-step (their frames batched through the network)
+    batch: int = 8  #: runs driven in lock-step (by one process, rendering beside the network)
     #: worker processes the runs are spread over (None: one per CPU core); each drives its
     #: share of the runs in lock-step. Needs the model's file; 1 drives in this process.
     workers: int | None = None

@@ -1,10 +1,11 @@
 """Closed-loop evaluation: a network drives the simulator, headless and in-process (no socket).
 
 Several runs (track x speed) are driven in lock-step by the episode runner
-(:mod:`clonedrive.episode`) so that their center frames go through the network as one batch per
-control step: single-frame Keras calls dominate otherwise. Each run has its own simulator and its
-own PI speed controller; steering comes from the shared network
-(:class:`~clonedrive.episode.drivers.PolicyDriver`).
+(:mod:`clonedrive.episode`), the network's predictions for one step beside the rendering of the
+next. Each run has its own simulator and its own PI speed controller; steering comes from the
+shared network (:class:`~clonedrive.episode.drivers.PolicyDriver`), which predicts each frame
+alone (:meth:`~clonedrive.drivers.policy.NetworkPolicy.predict`): a run drives the same path
+whichever runs share its group, its worker process or its command.
 
 The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event the frame the
 network saw is saved, and the car is put back on the centreline heading along the road at the set
@@ -177,7 +178,7 @@ def evaluate(policy: NetworkPolicy, config: EvalConfig | Sequence[EvalConfig],
     lock-step in a fresh worker process that loads the model itself; the groups start longest
     first. The results do not depend on that order. Driven in this process instead (one worker,
     or an in-memory model) and without video, a group's network runs on a second thread beside
-    the rendering (``Runner(overlap=True)``), in two half-size batches.
+    the rendering (``Runner(overlap=True)``), for half of the cars at a time.
 
     Each track is resolved once (``tracks``: those the caller already loaded, by the name the
     config gives) and the :class:`Track` itself goes to the simulators, the workers and the
@@ -269,7 +270,7 @@ def _drive_in_workers(policy: NetworkPolicy, parts: list[EvalConfig], groups: li
     # model file (also for saliency videos: they need the Keras model).
     portable = None
     if not any(part.video_saliency for part in parts):
-        portable = policy.portable(max(len(group) for _, group in groups))
+        portable = policy.portable()
     tasks = [GroupTask(model_path=str(model_path), model_options=dict(model_options or {}),
                        policy_options=policy.options(), portable=portable,
                        group=tuple(groups[i][1]), names=tuple(names), config=groups[i][0],

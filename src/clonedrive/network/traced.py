@@ -25,8 +25,8 @@ import numpy as np
 
 from clonedrive.network.crop import visible_rows
 
-#: Batch sizes traced per model at most (a lock-step group shrinks as its runs finish: one
-#: trace per size it passes through); beyond it, predict_on_batch.
+#: Batch sizes traced per model at most (a policy predicts one size, a frame or a frame and its
+#: mirror image; other callers may pass others); beyond it, predict_on_batch.
 MAX_TRACES = 16
 
 logger = logging.getLogger("clonedrive.model")
@@ -189,8 +189,10 @@ def tensor_dtype(tensor: Any) -> np.dtype:
 def _tensor(images: np.ndarray):
     import torch
 
-    if not (images.flags.writeable and images.flags.c_contiguous):
-        images = np.array(images)  # torch.from_numpy wants its own writable, contiguous array
+    # torch.from_numpy wants its own writable, contiguous array with no negative stride (one
+    # frame of a reversed batch counts as contiguous in numpy but keeps its negative stride).
+    if not (images.flags.writeable and images.flags.c_contiguous) or min(images.strides) < 0:
+        images = np.array(images)
     return torch.from_numpy(images)
 
 

@@ -13,7 +13,7 @@ class MixedDriver:
     """A runner :class:`~clonedrive.episode.runner.Driver`: per car and step, the expert's
     controls with probability ``beta`` (or during a safety takeover), else the network's.
 
-    The network's decisions come from one batched prediction for all cars
+    The network's decisions come from one prediction call for all cars
     (:class:`~clonedrive.episode.drivers.PolicyDriver`); each car has its own expert at the
     wheel, called every step so that its steering filter follows the car whoever drives.
     ``Decision.detail`` says who drove: ``"network"``, ``"expert"`` or ``"takeover"``.

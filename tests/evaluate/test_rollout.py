@@ -108,6 +108,25 @@ def test_lock_step_batching_gives_the_same_runs_as_one_at_a_time(tmp_path):
         assert {key: a[key] for key in figures} == {key: b[key] for key in figures}
 
 
+def test_a_filmed_run_drives_as_the_same_run_without_video(tmp_path):
+    """The network of a filmed run sees the strip its crop keeps, as without video; the video
+    gets whole frames rendered besides. (Filmed runs used to render whole frames for the
+    network too, whose pixels differ from the strip's, and drove another path.)"""
+    from clonedrive.model.architectures import build_model
+
+    policy = NetworkPolicy(build_model("fast", seed=5, speed_head=True), set_speed_mph=15.0,
+                           mirror_average=True)
+    base = dict(tracks=("lake",), speeds_mph=(15.0,), laps=1, scenery=False, max_seconds=5.0,
+                workers=1)
+    filmed = evaluate(policy, EvalConfig(video=True, **base), tmp_path / "a", progress=False)
+    plain = evaluate(policy, EvalConfig(**base), tmp_path / "b", progress=False)
+    (a,), (b,) = filmed["runs"], plain["runs"]
+    assert (tmp_path / "a" / a["video"]).stat().st_size > 0 and "video" not in b
+    figures = {key for key, value in a.items() if isinstance(value, int | float)}
+    assert {"distance_m", "mean_abs_cte_m", "steering_rate_per_s"} <= figures
+    assert {key: a[key] for key in figures} == {key: b[key] for key in figures}
+
+
 def test_a_track_given_by_an_absolute_path_names_its_outputs_by_its_name(tmp_path, tiny_policy):
     """Regression: ``evaluate MODEL --track /some/dir/mytrack.json`` drove the whole run and then
     crashed building the map's file name from the track's path, losing every result."""

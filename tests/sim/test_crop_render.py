@@ -107,3 +107,30 @@ def test_the_pool_shares_a_scene_only_among_the_same_rows_and_renderer():
     assert CameraPool.key(track, cropped) == CameraPool.key(
         track, SimConfig(cameras=("center",), scenery=False, renderer="software",
                          render_rows=[80, 135]))
+
+
+def test_a_filmed_simulator_sees_the_strip_and_films_the_whole_frame():
+    """``SimConfig(render_rows=..., film=True)``: the observations' frames are the strip an
+    unfilmed simulator renders, bit for bit (so a filmed run drives as an unfilmed one), and
+    each observation also carries the whole frame a whole-frame simulator renders there."""
+    from clonedrive.sim.camera_pool import CameraPool
+    from clonedrive.world.vehicle import Controls
+
+    rows = CROPS[1]
+    common = {"cameras": ("center",), "scenery": False}
+    with CameraPool() as pool:
+        sims = [Simulator("lake", SimConfig(**common, render_rows=rows, film=True), pool=pool),
+                Simulator("lake", SimConfig(**common, render_rows=rows), pool=pool),
+                Simulator("lake", SimConfig(**common))]
+        observations = [[sim.reset(seed=0)[0]] for sim in sims]
+        for step in range(6):
+            for sim, seen in zip(sims, observations, strict=True):
+                seen.append(sim.step(Controls(steering=0.3 * (-1) ** step, throttle=0.8))[0])
+        for filmed, strip, whole in zip(*observations, strict=True):
+            np.testing.assert_array_equal(filmed.images["center"], strip.images["center"])
+            assert (filmed.images["center"][:rows[0]] == FILL_VALUE).all()
+            np.testing.assert_array_equal(filmed.film_frame, whole.images["center"])
+            assert strip.film_frame is None and whole.film_frame is None
+        for sim in sims:
+            sim.close()
+        assert pool.scenes == 0  # the film's rig went back to the pool too

@@ -11,10 +11,11 @@ The runner's rules apply (:mod:`clonedrive.episode.rules`): on an off-road event
 network saw is saved, and the car is put back on the centreline heading along the road at the set
 speed (an intervention); a run stops when its laps have been driven or its time limit passes.
 
-A run without video renders only the rows the network's crop keeps (``render_rows``, from the
-model: :mod:`clonedrive.network.crop`; ``full_frame`` turns it off); the rest of each frame is
-a constant, also in its off-road frames. A run with video renders whole frames. eval.json
-records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
+Every run renders for the network only the rows the network's crop keeps (``render_rows``, from
+the model: :mod:`clonedrive.network.crop`; ``full_frame`` turns it off); the rest of each frame is
+a constant, also in its off-road frames. A run with video renders a whole frame for its video
+besides (``SimConfig.film``), so a filmed run drives exactly as the same run without video.
+eval.json records the rows and the renderer (``renderer``, ``renderer_used``, ``gl_renderer``).
 
 Output file names (maps, videos, off-road frames) are made from the track's own name and the
 speed by :func:`clonedrive.base.paths.safe_stem`, never from the path a track was given by.
@@ -348,7 +349,7 @@ def _expected_steps(spec: RunSpec, config: EvalConfig, track: Track) -> int:
 
 def _rendering(policy: NetworkPolicy, config: EvalConfig) -> dict:
     """What eval.json records about how frames were drawn: the renderer (sim/engine.py) and the
-    rows rendered for runs without video (None: whole frames)."""
+    rows rendered for the network (None: whole frames)."""
     from clonedrive.sim.engine import renderer_info
 
     rows = None if config.full_frame else policy.visible_rows
@@ -362,8 +363,8 @@ def _open_run(index: int, spec: RunSpec, name: str, config: EvalConfig, out: Pat
 
     filmed = config.video and not spec.unseen
     sim = Simulator(track, SimConfig(cameras=("center",), scenery=config.scenery,
-                                          renderer=config.renderer,
-                                          render_rows=None if filmed else rows), pool=pool)
+                                     renderer=config.renderer, render_rows=rows, film=filmed),
+                    pool=pool)
     try:
         rules = EpisodeRules(laps=spec.laps, set_speed_mph=spec.speed_mph,
                              max_seconds=config.max_seconds,
@@ -433,20 +434,28 @@ def _record_step(run: _Run, step: Step, out: Path) -> None:
     earlier = len(trace.off_road) - len(step.events)  # interventions before this step
     if run.video is not None:
         observed = step.observed
-        frame = step.seen.images["center"]
-        if run.saliency is not None:
+        frame = _whole(step.seen)
+        if run.saliency is not None:  # where the network looked, in what it saw
             from clonedrive.model.saliency import overlay
 
-            frame = overlay(frame, run.saliency.masks(frame)[0])
+            frame = overlay(frame, run.saliency.masks(step.seen.images["center"])[0])
         # A callable: the HUD is drawn on the video's feeder thread, off the driving loop.
         run.video.append(functools.partial(
             hud_frame, frame, steering=step.decision.controls.steering,
             speed_mph=observed.speed_mph, cte_m=observed.cte_m,
             lap=run.episode.laps_started, laps=run.spec.laps, interventions=earlier))
     for number, record in enumerate(trace.off_road[earlier:], start=earlier + 1):
-        frame_png = _save_frame(step.observed.images["center"],
+        frame_png = _save_frame(_whole(step.observed),
                                 out / "off_road" / f"{run.name}_{number:03d}.png")
         record.frame_png = str(frame_png.relative_to(out))
+
+
+def _whole(observation) -> np.ndarray:
+    """The center camera's frame as a person should see it: the whole frame of a filmed run
+    (its network sees a strip), else the frame the network saw."""
+    if observation.film_frame is not None:
+        return observation.film_frame
+    return observation.images["center"]
 
 
 def _save_frame(image: np.ndarray, path: Path) -> Path:

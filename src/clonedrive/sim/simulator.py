@@ -16,7 +16,7 @@ driving direction with no off-road event.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -64,6 +64,9 @@ class SimConfig:
     #: render only rows [top, bottom) of each frame, the rest filled with a constant (what a
     #: network that crops its input looks at; sim/cameras.py); None: full frames
     render_rows: tuple[int, int] | None = None
+    #: with ``render_rows``: also render the center camera's whole frame for each observation
+    #: (:attr:`SimObservation.film_frame`, for a video), while ``images`` keep the strip
+    film: bool = False
 
     def __post_init__(self) -> None:
         substeps = self.physics_hz / self.control_hz
@@ -109,6 +112,8 @@ class SimObservation:
     off_road_events: int
     lap_progress: float  #: fraction of the current lap covered, 0..1
     curvature_per_m: float  #: road curvature here, in the driving direction (+ = left)
+    #: The center camera's whole frame where ``images`` hold a strip (``SimConfig.film``).
+    film_frame: np.ndarray | None = None
 
     def state_vector(self) -> np.ndarray:
         """A compact float32 state: speed, steering, CTE, heading error, curvature, on-road."""
@@ -148,6 +153,7 @@ class Simulator:
         self._substeps = int(round(self.config.physics_hz / self.config.control_hz))
         self._dt_s = 1.0 / self.config.physics_hz
         self._rig = None
+        self._film_rig = None  # the whole-frame center camera of SimConfig.film
         self._state = VehicleState()
         self._obs: SimObservation | None = None  # None until reset()
         self._laps = LapCounter(self.track.length_m)
@@ -159,7 +165,7 @@ class Simulator:
         self._direction = 1.0
         #: A step begun by :meth:`advance`: the car's new pose, and its frames once rendered.
         self._advanced: _Pose | None = None
-        self._advanced_images: dict | None = None
+        self._advanced_images: tuple[dict, np.ndarray | None] | None = None
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> Simulator:
@@ -169,22 +175,28 @@ class Simulator:
         self.close()
 
     def close(self) -> None:
-        """Release the rendering engine (if one was opened), or give the rig back to the pool."""
-        if self._rig is not None and self.pool is not None:
-            self.pool.give_back(self._rig)
-        elif self._rig is not None:
-            from clonedrive.sim.camera_pool import close_rig
+        """Release the rendering engines (if opened), or give the rigs back to the pool."""
+        from clonedrive.sim.camera_pool import close_rig
 
-            close_rig(self._rig)
-        self._rig = None
+        for rig in (self._rig, self._film_rig):
+            if rig is not None and self.pool is not None:
+                self.pool.give_back(rig)
+            elif rig is not None:
+                close_rig(rig)
+        self._rig = self._film_rig = None
 
     def _open_cameras(self, seed: int) -> None:
+        self._rig = self._open_rig(self.config, seed)
+        if self.config.film and self.config.render_rows is not None:
+            whole = replace(self.config, cameras=("center",), render_rows=None, film=False)
+            self._film_rig = self._open_rig(whole, seed)
+
+    def _open_rig(self, config: SimConfig, seed: int):
         from clonedrive.sim.camera_pool import build_rig
 
         if self.pool is not None:
-            self._rig = self.pool.open(self.track, self.config, seed)
-        else:
-            self._rig = build_rig(self.track, self.config, seed)
+            return self.pool.open(self.track, config, seed)
+        return build_rig(self.track, config, seed)
 
     # ------------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None
@@ -212,7 +224,7 @@ class Simulator:
         self._advanced = self._advanced_images = None
         pose = self._pose()
         self._laps.restart(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
-        self._obs = self._observation(pose, self._render(pose))
+        self._obs = self._observation(pose, *self._render(pose))
         return self._obs, {"events": []}
 
     def step(self, controls: Controls) -> tuple[SimObservation, dict]:
@@ -249,10 +261,10 @@ class Simulator:
         """The last part of :meth:`step` (rendering first if :meth:`render_advanced` was not
         called): count laps and off-road events, observe. Returns what :meth:`step` returns."""
         self.render_advanced()
-        pose, images = self._advanced, self._advanced_images
+        pose, (images, film_frame) = self._advanced, self._advanced_images
         self._advanced = self._advanced_images = None
         lap = self._count(pose)
-        self._obs = self._observation(pose, images)
+        self._obs = self._observation(pose, images, film_frame)
         events = [lap.event] if lap.event is not None else []
         return self._obs, {"events": events, "lap_completed": lap.lap_completed}
 
@@ -267,7 +279,7 @@ class Simulator:
         self._place(self._obs.s_m, 0.0, speed_mph, 0.0)
         pose = self._pose()
         self._laps.placed(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
-        self._obs = self._observation(pose, self._render(pose))
+        self._obs = self._observation(pose, *self._render(pose))
         return self._obs
 
     # ------------------------------------------------------------------ the steps of a step
@@ -322,12 +334,15 @@ class Simulator:
             relative_yaw_rad=relative,
         )
 
-    def _render(self, pose: _Pose) -> dict:
+    def _render(self, pose: _Pose) -> tuple[dict, np.ndarray | None]:
+        """The cameras' frames at ``pose``, and the film's whole frame (or None)."""
         if self._rig is None:
-            return {}
+            return {}, None
         state = self._state
-        return self._rig.render(state.x_m, state.y_m, pose.z_m, state.yaw_rad, pose.pitch_rad,
-                                pose.roll_rad)
+        where = (state.x_m, state.y_m, pose.z_m, state.yaw_rad, pose.pitch_rad, pose.roll_rad)
+        images = self._rig.render(*where)
+        film_frame = None if self._film_rig is None else self._film_rig.render(*where)["center"]
+        return images, film_frame
 
     def _count(self, pose: _Pose):
         state = self._state
@@ -335,7 +350,8 @@ class Simulator:
                                  time_s=self._time_s, x_m=state.x_m, y_m=state.y_m,
                                  cte_m=self._direction * pose.cte_m)
 
-    def _observation(self, pose: _Pose, images: dict) -> SimObservation:
+    def _observation(self, pose: _Pose, images: dict,
+                     film_frame: np.ndarray | None = None) -> SimObservation:
         state = self._state
         direction = self._direction
         laps = self._laps
@@ -363,6 +379,7 @@ class Simulator:
             off_road_events=len(laps.events),
             lap_progress=laps.lap_progress,
             curvature_per_m=direction * float(self.track.curvature(pose.track_s_m)),
+            film_frame=film_frame,
         )
 
     # ------------------------------------------------------------------ read-only state

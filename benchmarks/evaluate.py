@@ -31,10 +31,11 @@ is extra work beside the loop, not part of it.
 - ``shared_scene_speedup``: that steady loop with the 8 cars sharing one scene (a
   ``CameraPool``, as evaluate's groups do) / with a scene per car (median of 3 alternating pairs).
 
-``evaluate`` renders only the rows the network's crop keeps (runs without video), so
-``loop_ratio``, ``loop_ratio_onnx`` and ``loop_ratio_workers`` are the cropped loop against
-full-frame rendering (the reference is unchanged); the steady-state figures step simulators
-that draw full frames. ``benchmarks/crop.py`` compares the crop with ``--full-frame``.
+``evaluate`` renders for the network only the rows its crop keeps (a run with video renders
+whole frames for the video besides), so ``loop_ratio``, ``loop_ratio_onnx`` and
+``loop_ratio_workers`` are the cropped loop against full-frame rendering (the reference is
+unchanged); the steady-state figures step simulators that draw full frames.
+``benchmarks/crop.py`` compares the crop with ``--full-frame``.
 
 ``loop_ratio``, ``video_ratio`` and ``loop_ratio_workers`` are each the median of 3 alternating
 pairs (the figure, then its reference), as the machine's speed drifts within a run.

@@ -163,9 +163,10 @@ class Simulator:
         self._controls = Controls()
         self._reverse = False
         self._direction = 1.0
-        #: A step begun by :meth:`advance`: the car's new pose, and its frames once rendered.
+        #: A step begun by :meth:`advance`: the car's new pose, and once rendered its frames
+        #: (the cameras' images and the film's whole frame or None, as :meth:`_render` gives).
         self._advanced: _Pose | None = None
-        self._advanced_images: tuple[dict, np.ndarray | None] | None = None
+        self._advanced_frames: tuple[dict, np.ndarray | None] | None = None
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> Simulator:
@@ -221,7 +222,7 @@ class Simulator:
         self._time_s = 0.0
         self._distance_m = 0.0
         self._controls = Controls()
-        self._advanced = self._advanced_images = None
+        self._advanced = self._advanced_frames = None
         pose = self._pose()
         self._laps.restart(self._s_dir(pose), off_road=not all(pose.tyres_on_road))
         self._obs = self._observation(pose, *self._render(pose))
@@ -254,15 +255,15 @@ class Simulator:
         """The second part of :meth:`step`: render the cameras at the advanced pose."""
         if self._advanced is None:
             raise RuntimeError("nothing to render: call advance() first")
-        if self._advanced_images is None:
-            self._advanced_images = self._render(self._advanced)
+        if self._advanced_frames is None:
+            self._advanced_frames = self._render(self._advanced)
 
     def finish_step(self) -> tuple[SimObservation, dict]:
         """The last part of :meth:`step` (rendering first if :meth:`render_advanced` was not
         called): count laps and off-road events, observe. Returns what :meth:`step` returns."""
         self.render_advanced()
-        pose, (images, film_frame) = self._advanced, self._advanced_images
-        self._advanced = self._advanced_images = None
+        pose, (images, film_frame) = self._advanced, self._advanced_frames
+        self._advanced = self._advanced_frames = None
         lap = self._count(pose)
         self._obs = self._observation(pose, images, film_frame)
         events = [lap.event] if lap.event is not None else []
@@ -351,7 +352,7 @@ class Simulator:
                                  cte_m=self._direction * pose.cte_m)
 
     def _observation(self, pose: _Pose, images: dict,
-                     film_frame: np.ndarray | None = None) -> SimObservation:
+                     film_frame: np.ndarray | None) -> SimObservation:
         state = self._state
         direction = self._direction
         laps = self._laps

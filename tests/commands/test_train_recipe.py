@@ -30,7 +30,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.005, steering_filter_s=0.05, full_speed_at=0.95)
+        mirror_average=True, steering_hold=0.004, steering_filter_s=0.05, full_speed_at=0.95)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -52,10 +52,10 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--laps", "1", "--max-seconds", "2", "--no-scenery", "--workers", "1",
                  "--out", str(out), "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is True and header["steering_hold"] == 0.005
+    assert header["mirror_average"] is True and header["steering_hold"] == 0.004
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 5}
+    assert header["recipe"] == {"name": "best", "version": 6}
     assert header["steering_scale_from_mph"] == 0.0
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
@@ -67,7 +67,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
                  "--no-mirror-average", "--slow-in-curves", "--steering-scale-from", "24",
                  "--json"]) == 0
     header = json.loads((out / "eval.json").read_text())
-    assert header["mirror_average"] is False and header["steering_hold"] == 0.005
+    assert header["mirror_average"] is False and header["steering_hold"] == 0.004
     assert header["slow_in_curves"] is True and header["steering_scale_from_mph"] == 24.0
 
 
@@ -93,8 +93,8 @@ def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
     """[finetune] is a second stage from the first one's best model; OUT/model.keras is it."""
     from importlib import resources
 
-    text = resources.files("clonedrive.recipes").joinpath("best.toml").read_text("utf-8")
-    text = text.replace('name = "best"', 'name = "staged"')
+    text = resources.files("clonedrive.recipes").joinpath("agile.toml").read_text("utf-8")
+    text = text.replace('name = "agile"', 'name = "staged"')
     if "[finetune]" not in text:
         text = text.replace("[drive]", "[finetune]\nepochs = 1\nlearning_rate = 0.0003\n"
                                        "consistency = 10\n\n[drive]")
@@ -114,20 +114,31 @@ def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
                  "--out", str(out)]) == 1
 
 
-def test_recipe_calm_trains_three_stages_each_from_the_one_before(tmp_path: Path):
+def test_recipe_best_trains_three_stages_each_from_the_one_before(best_run: Path):
     """[[finetune]] tables: one stage each; the stage between trains into stage2/."""
-    out = tmp_path / "run"
-    assert main(["train", str(LAKE), "--recipe", "calm", "--epochs", "1", "--batch-size", "64",
-                 "--no-h5", "--out", str(out), "--json"]) == 0
     base, middle, final = (json.loads((folder / "config.json").read_text())
-                           for folder in (out / "base", out / "stage2", out))
-    assert middle["init_from"] == str(out / "base" / "model.keras")
-    assert final["init_from"] == str(out / "stage2" / "model.keras")
+                           for folder in (best_run / "base", best_run / "stage2", best_run))
+    assert middle["init_from"] == str(best_run / "base" / "model.keras")
+    assert final["init_from"] == str(best_run / "stage2" / "model.keras")
     assert [config["consistency"] for config in (base, middle, final)] == [0, 60, 60]
     assert [config["epochs"] for config in (base, middle, final)] == [1, 2, 1]
     assert [config["batch_size"] for config in (base, middle, final)] == [64, 64, 64]
-    assert stored_settings(out / "model.keras").steering_hold == 0.004
-    assert read_notes(out / "model.keras")["recipe"] == {"name": "calm", "version": 1}
+    assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 6}
+
+
+def test_recipe_agile_trains_two_stages_with_a_wider_hold(tmp_path: Path):
+    """``agile`` (best v5): one consistency stage at weight 30, and a hold of 0.005."""
+    out = tmp_path / "run"
+    assert main(["train", str(LAKE), "--recipe", "agile", "--epochs", "1", "--batch-size", "64",
+                 "--no-h5", "--out", str(out), "--json"]) == 0
+    base, final = (json.loads((folder / "config.json").read_text())
+                   for folder in (out / "base", out))
+    assert final["init_from"] == str(out / "base" / "model.keras")
+    assert not (out / "stage2").exists()
+    assert [(config["consistency"], config["epochs"]) for config in (base, final)] == [
+        (0, 1), (30, 2)]
+    assert stored_settings(out / "model.keras").steering_hold == 0.005
+    assert read_notes(out / "model.keras")["recipe"] == {"name": "agile", "version": 1}
 
 
 def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
@@ -142,7 +153,7 @@ def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
     from clonedrive.recipes.book import load_recipe_file
     from clonedrive.recipes.training import run_stages, train_stages
 
-    recipe = load_recipe_file("best")
+    recipe = load_recipe_file("agile")  # two stages
     stages = [dataclasses.replace(config, epochs=1, batch_size=64, cache="memmap",
                                   export_h5=False) for config in train_stages(recipe)]
     assert len(stages) == 2

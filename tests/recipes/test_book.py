@@ -62,12 +62,12 @@ def test_writeup_is_todays_demo():
 
 def test_a_copied_and_edited_recipe_is_used(tmp_path):
     text = _text("best").replace('name = "best"', 'name = "mine"').replace(
-        "epochs = 3", "epochs = 2").replace("steering_hold = 0.005", "steering_hold = 0.008")
+        "epochs = 3", "epochs = 2").replace("steering_hold = 0.004", "steering_hold = 0.008")
     path = tmp_path / "mine.toml"
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
-    assert recipe.label() == "mine v5"  # the copy keeps best's version
+    assert recipe.label() == "mine v6"  # the copy keeps best's version
     assert recipe.train_config().epochs == 2
     assert recipe.driving.steering_hold == 0.008
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
@@ -92,9 +92,9 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
 
 @pytest.mark.parametrize("name, edit, message", [
     ("best", ("[train]", "[train]\nwarp = 9"), "warp"),
-    ("best", ("steering_hold = 0.005", "steering_hold = 2.0"), "steering_hold"),
+    ("best", ("steering_hold = 0.004", "steering_hold = 2.0"), "steering_hold"),
     ("best", ('name = "best"', 'name = ""'), "needs a name"),
-    ("best", ("version = 5", "version = 0"), "version"),
+    ("best", ("version = 6", "version = 0"), "version"),
     ("best", ("laps = 3", "laps = 0"), "laps"),
     ("best", ('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
     ("best", ("correction = 0.054", "correction = 7"), "correction"),
@@ -102,9 +102,9 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
     ("best", ("[recipe]", "[recipes]"), "recipes"),
     ("best", ("[[recording]]", "[[recording]]\npath = 'x'"), "path and recording settings"),
     # [[finetune]] tables are checked one by one, naming the table
-    ("calm", ("epochs = 1             #", "warp = 2\nepochs = 1 #"),
+    ("best", ("epochs = 1             #", "warp = 2\nepochs = 1 #"),
      r"\[\[finetune\]\] #2: .*warp"),
-    ("calm", ("[[finetune]]\nepochs = 2", "[[finetune]]\nepochs = 0"),
+    ("best", ("[[finetune]]\nepochs = 2", "[[finetune]]\nepochs = 0"),
      r"\[\[finetune\]\] #1: .*epochs"),
 ])
 def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, name, edit, message):
@@ -116,7 +116,7 @@ def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, name, edit, messa
 
 
 def test_unknown_recipe_names_the_built_in_ones():
-    with pytest.raises(FileNotFoundError, match="best, calm, writeup"):
+    with pytest.raises(FileNotFoundError, match="agile, best, writeup"):
         load_recipe_file("bestest")
 
 
@@ -127,20 +127,23 @@ def test_not_toml_is_refused(tmp_path):
         load_recipe_file(path)
 
 
-def test_calm_is_best_with_two_consistency_stages_and_a_narrower_hold():
-    best, calm = load_recipe_file("best"), load_recipe_file("calm")
-    assert calm.recordings == best.recordings and calm.data_table == best.data_table
-    assert calm.evaluation == best.evaluation
-    stages = train_stages(calm)
-    assert stages[0] == train_stages(best)[0]
-    assert [(stage.epochs, stage.learning_rate, stage.consistency) for stage in stages[1:]] == [
+def test_agile_is_best_v5_one_consistency_stage_and_a_wider_hold():
+    best, agile = load_recipe_file("best"), load_recipe_file("agile")
+    assert agile.recordings == best.recordings and agile.data_table == best.data_table
+    assert agile.evaluation == best.evaluation
+    stages, best_stages = train_stages(agile), train_stages(best)
+    assert stages[0] == best_stages[0]
+    assert [(stage.epochs, stage.learning_rate, stage.consistency)
+            for stage in best_stages[1:]] == [
         (2, 0.0005, 60), (1, 0.0005, 60)]  # the last stage keeps the one before's settings
-    assert calm.driving == dataclasses.replace(best.driving, steering_hold=0.004)
+    assert [(stage.epochs, stage.learning_rate, stage.consistency) for stage in stages[1:]] == [
+        (2, 0.0005, 30)]
+    assert best.driving == dataclasses.replace(agile.driving, steering_hold=0.004)
 
 
 def test_a_finetune_that_is_not_a_table_is_refused(tmp_path):
     path = tmp_path / "bad.toml"
-    text = _text("best")
+    text = _text("agile")  # one [finetune] table
     without = text[:text.index("[finetune]")] + text[text.index("[drive]"):]
     path.write_text('finetune = "x"\n' + without, encoding="utf-8")
     with pytest.raises(ValueError, match="must be a table"):

@@ -128,6 +128,26 @@ def test_data_table_joins_recorder_config_recipe_and_row_counts(report, run_dir)
     assert rows["total"][6] == f"{len(left.rows) + 70} / {left.total_rows + 70}"
 
 
+def test_a_copied_run_folder_lists_each_recording_once(tmp_path: Path, run_dir) -> None:
+    """The training recipe names the original folder's recordings; the copy's own ``data/``
+    holds the same logs, so each recording is one row, with the recipe's settings."""
+    copy = tmp_path / "copy"
+    shutil.copytree(run_dir, copy)
+    result = write_report(copy, tmp_path / "out")
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    rows = _table_rows(_section(markdown, SECTION_TITLES["data"]))
+    assert [row[0] for row in rows] == ["lake_left", "udacity_lake", "total"]
+    assert rows[0][7] == "center + left/right (±0.2)"
+    # A recording edited in the copy is not the one the model was trained on: listed apart.
+    log = copy / "data" / "lake_left" / "driving_log.csv"
+    log.write_text(log.read_text(encoding="utf-8") + "\n", encoding="utf-8")
+    result = write_report(copy, tmp_path / "out2")
+    rows = _table_rows(_section(result.markdown_path.read_text(encoding="utf-8"),
+                                SECTION_TITLES["data"]))
+    assert [row[0] for row in rows] == ["lake_left", "udacity_lake", "lake_left", "total"]
+    assert rows[2][7] == "not in training recipe"
+
+
 def test_layer_table_lists_the_models_layers_and_parameters(report, run_dir) -> None:
     import keras
 
@@ -337,7 +357,9 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     assert [row[0] for row in epochs] == ["1 (base)", "2 (fine-tune)"]
     assert [row[-1] for row in epochs] == ["", "best"]  # model.keras is the fine-tune's
     assert "Training ran in 2 stages (the recipe's `[finetune]`)" in training
-    assert "at epoch 2 (random split)" in result.markdown_path.read_text(encoding="utf-8")
+    markdown = result.markdown_path.read_text(encoding="utf-8")
+    assert "1 epoch from scratch (`base/`), then a fine-tune of 1 epoch, best" in markdown
+    assert "at epoch 2 (random split)" in markdown
     # Training's own loss.png holds the second stage only; the report plots both.
     plotted = tmp_path / "report" / "report" / "loss.png"
     assert plotted.is_file()
@@ -350,4 +372,4 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
     assert [row[0] for row in epochs] == ["1 (base)", "2 (stage2)", "3 (fine-tune)"]
     assert "Training ran in 3 stages" in training and "1 epoch(s) into `stage2/`" in training
-    assert "1 epoch from scratch (`base/`), then a fine-tune of 2 epochs" in markdown
+    assert "1 epoch from scratch (`base/`), then 2 fine-tune stages of 1 + 1 epochs" in markdown

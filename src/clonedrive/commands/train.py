@@ -23,7 +23,7 @@ HELP = "train a Keras steering network on recordings (folders, with a recipe's s
 DESCRIPTION = (
     "Train a network that predicts steering (and with a speed head the expert's target speed) "
     "from one 160x320 RGB camera frame. The settings come from a recipe (--recipe, default "
-    "'best'; 'calm' is calmer for more training, 'writeup' the seed write-up's): the network, "
+    "'best'; 'agile' is best v5, 'writeup' the seed write-up's): the network, "
     "epochs, learning rate, crop, side-camera correction, and how the model is to be driven, "
     "which is stored in the model file. Options override it one by one. Data comes from "
     "recording folders DIR ... (center + side cameras, mirrored copies), from the recipe's own "
@@ -50,6 +50,7 @@ EXAMPLES = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from clonedrive.model.train_config import TrainConfig
+    from clonedrive.recipes.book import recipe_choices_text
 
     d = TrainConfig()
     r = "default: the recipe's, else"  # an option left out takes the recipe's value
@@ -57,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dirs", nargs="*", metavar="DIR",
                         help="recording folders (driving_log.csv + IMG/), default recipe each")
     parser.add_argument("--recipe", default=None, metavar="NAME|FILE",
-                        help="a built-in recipe (best, calm, writeup) or a recipe file: the "
+                        help=f"a built-in recipe ({recipe_choices_text()}) or a recipe file: the "
                              "training and driving settings, and with no DIRs the data "
                              "(default: best); or a data recipe file (its recordings, with "
                              "best's settings)")

@@ -59,7 +59,7 @@ from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reje
 from clonedrive.network.driving_settings import DrivingSettings
 
 #: The recipes that ship with clonedrive (``<name>.toml`` in this package).
-BUILT_IN = ("best", "calm", "writeup")
+BUILT_IN = ("agile", "best", "writeup")
 #: What ``clonedrive demo`` and ``clonedrive train`` use when given no recipe.
 DEFAULT_RECIPE = "best"
 #: Recipe files larger than this are refused (they are a few kilobytes).

@@ -72,9 +72,7 @@ def _recordings(ctx: ReportContext) -> list[_Recording]:
     used: set[Path] = set()
     data_dirs = {p.name: p for p in ctx.parts.recordings}
     for spec in specs:
-        path = spec.path
-        if not (path / "driving_log.csv").is_file():  # the run folder was moved
-            path = data_dirs.get(spec.name) or data_dirs.get(spec.path.name) or path
+        path = _recording_folder(spec, data_dirs)
         found.append(_Recording(spec.name, path, spec, None, None))
         used.add(path.resolve())
     for path in ctx.parts.recordings:
@@ -87,6 +85,27 @@ def _recordings(ctx: ReportContext) -> list[_Recording]:
         except (OSError, ValueError) as error:
             item.error = str(error)
     return found
+
+
+def _recording_folder(spec, data_dirs: dict[str, Path]) -> Path:
+    """Where a training recipe's recording is: the run folder's own copy of it (``data/``)
+    where the recipe's path is gone (the run folder was moved) or holds the same log (the run
+    folder was copied), else the recipe's path."""
+    own = data_dirs.get(spec.name) or data_dirs.get(spec.path.name)
+    if own is None or own.resolve() == spec.path.resolve():
+        return spec.path
+    if not (spec.path / "driving_log.csv").is_file():
+        return own
+    return own if _same_file(own / "driving_log.csv", spec.path / "driving_log.csv") else spec.path
+
+
+def _same_file(first: Path, second: Path) -> bool:
+    import filecmp
+
+    try:
+        return filecmp.cmp(first, second, shallow=False)
+    except OSError:
+        return False
 
 
 def _data_text(ctx: ReportContext, recordings: list[_Recording]) -> list:

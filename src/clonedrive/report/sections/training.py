@@ -62,10 +62,9 @@ def build(ctx: ReportContext) -> list[Section]:
     if history:
         best = min(history, key=lambda r: r.get("val_loss", math.inf)
                    if math.isfinite(r.get("val_loss", math.nan)) else math.inf)
-        tuned = len(base_history) - base + len(history)
-        stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then a fine-tune of "
-                  f"{fmt.plural(tuned, 'epoch')}" if base
-                  else fmt.plural(len(history), 'epoch'))
+        stages = (f"{fmt.plural(base, 'epoch')} from scratch (`base/`), then "
+                  + _fine_tunes([len(rows) for _, rows in earlier[1:]] + [len(history)])
+                  if base else fmt.plural(len(history), 'epoch'))
         ctx.headline(
             f"Training: {stages}, best validation loss "
             f"{fmt.num(best.get('val_loss'), 4)} at epoch {best['epoch']} ({kind} split).")
@@ -114,6 +113,13 @@ def _split_text(kind: str | None, description: str | None) -> str:
     if description:
         text += f" This run: {description}."
     return text
+
+
+def _fine_tunes(epochs: list[int]) -> str:
+    """``a fine-tune of 2 epochs``, or ``2 fine-tune stages of 2 + 1 epochs``."""
+    if len(epochs) == 1:
+        return f"a fine-tune of {fmt.plural(epochs[0], 'epoch')}"
+    return f"{len(epochs)} fine-tune stages of {' + '.join(map(str, epochs))} epochs"
 
 
 def _stages_text(earlier: list[tuple[str, list[dict]]]) -> str:

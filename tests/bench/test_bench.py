@@ -246,3 +246,10 @@ def test_a_resumed_bench_keeps_the_finished_batches_and_ends_as_an_uninterrupted
     with pytest.raises(ResumeError, match="'settings' differs"):
         bench(replace(config, max_seconds=2.0), tmp_path / "cut", progress=False, resume=True)
     assert (tmp_path / "cut" / "bench.json").read_bytes() == before
+    # So is one made before bench.json recorded how the policy predicted (it batched the
+    # lock-step cars' frames, so its runs differ from this code's by their last bits).
+    old = json.loads(before)
+    assert old.pop("prediction") == "each frame alone"
+    (tmp_path / "cut" / "bench.json").write_text(json.dumps(old), encoding="utf-8")
+    with pytest.raises(ResumeError, match="'prediction' differs"):
+        bench(config, tmp_path / "cut", progress=False, resume=True)

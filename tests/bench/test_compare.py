@@ -132,6 +132,25 @@ def test_compare_finds_a_real_difference_and_none_between_seeds_of_one_recipe(
     assert "not a bench.json (its top level is not an object)" in capsys.readouterr().err
 
 
+def test_compare_says_when_the_two_runs_predicted_another_way(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A bench run made before bench.json recorded ``prediction`` batched its lock-step cars'
+    frames; compared with one that predicted each frame alone, the comparison says so."""
+    from clonedrive.drivers.policy import PREDICTION, PREDICTION_BEFORE
+
+    scores = [[1.0, 0.8, 0.9, 1.0]]
+    paths = [_bench_json(tmp_path / name, name, scores) for name in ("old", "new", "newer")]
+    for path in paths[1:]:
+        report = json.loads((path / "bench.json").read_text(encoding="utf-8"))
+        (path / "bench.json").write_text(json.dumps({**report, "prediction": PREDICTION}),
+                                         encoding="utf-8")
+    assert main(["bench", "compare", str(paths[1]), str(paths[2]), "--json"]) == 0
+    assert "caveat" not in json.loads(capsys.readouterr().out)
+    assert main(["bench", "compare", str(paths[0]), str(paths[1])]) == 0
+    printed = capsys.readouterr().out
+    assert f"note: A's runs were driven with {PREDICTION_BEFORE}, B's with {PREDICTION}" in printed
+
+
 def test_the_label_permutation_p_value_is_exact_for_few_models() -> None:
     # Three against three, wholly apart: 2 of the 20 splits are as extreme (this one and its
     # mirror), the least p-value three against three can give.

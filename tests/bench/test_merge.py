@@ -123,6 +123,24 @@ def test_runs_that_cannot_be_merged_are_refused_naming_the_run(models) -> None:
         merge_reports([])
 
 
+def test_a_merge_says_how_its_inputs_predicted(models) -> None:
+    """Runs made before bench.json recorded ``prediction`` batched the lock-step cars' frames;
+    merged with runs that predicted each frame alone, the merged run names both ways."""
+    from clonedrive.drivers.policy import PREDICTION, PREDICTION_BEFORE
+
+    new = [(split, {**_report(models, (split,)), "prediction": PREDICTION})
+           for split in ("easy", "hard")]
+    assert merge_reports(new)["prediction"] == PREDICTION
+    merged = merge_reports([*new, ("dev", _report(models, ("dev",)))])
+    assert merged["prediction"] == f"mixed: {PREDICTION}; {PREDICTION_BEFORE}"
+    # The leaderboard says so; a board whose runs were all driven alike does not.
+    from clonedrive.bench.leaderboard import markdown
+
+    page = markdown(merged, [])
+    assert "Not every run was driven alike" in page and "lock-step" in page
+    assert "driven alike" not in markdown(merge_reports(new), [])
+
+
 def test_the_merge_command_relabels_writes_a_leaderboard_and_compare_reads_it(
         tmp_path: Path, models, capsys: pytest.CaptureFixture) -> None:
     for split in SPLITS:

@@ -23,3 +23,12 @@ def read_bench_file(path_text: str, spec: str) -> tuple[Path, dict]:
     if not isinstance(report, dict):
         raise BenchFileError(f"{path}: not a bench.json (its top level is not an object)")
     return path, report
+
+
+def prediction_of(report: dict) -> str:
+    """How the bench run's network policy put frames through the network (bench.json's
+    ``prediction``; a run made before it was recorded batched the lock-step cars' frames)."""
+    from clonedrive.drivers.policy import PREDICTION_BEFORE
+
+    value = report.get("prediction")
+    return value if isinstance(value, str) and value else PREDICTION_BEFORE

@@ -28,9 +28,10 @@ class CompareError(ValueError):
     """A bench run or method that cannot be compared; the message says which and why."""
 
 
-def load_method(spec: str) -> tuple[str, dict, list[list[dict]]]:
-    """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of each model of the method)."""
-    from clonedrive.bench.bench_file import read_bench_file
+def load_method(spec: str) -> tuple[str, dict, list[list[dict]], str]:
+    """``PATH[:LABEL]`` -> (a name for it, its suite, the runs of each model of the method, how
+    its policy predicted: :func:`clonedrive.bench.bench_file.prediction_of`)."""
+    from clonedrive.bench.bench_file import prediction_of, read_bench_file
 
     path_text, _, label = spec.rpartition(":") if not Path(spec).exists() else (spec, "", "")
     if not path_text:
@@ -51,7 +52,7 @@ def load_method(spec: str) -> tuple[str, dict, list[list[dict]]]:
     else:
         raise CompareError(f"{path}: no method {label!r} (it has {', '.join(sorted(methods))})")
     return (f"{label} ({path.parent.name})", report.get("suite", {}),
-            [list(model.get("runs", [])) for model in models])
+            [list(model.get("runs", [])) for model in models], prediction_of(report))
 
 
 def per_episode(runs: list[dict], value: Callable[[dict], float | None]) -> dict[str, float]:
@@ -69,8 +70,8 @@ def compare(spec_a: str, spec_b: str, *, seed: int = 0) -> dict:
     """Every figure of :data:`FIGURES` compared between the methods ``spec_a`` and ``spec_b``."""
     from clonedrive.bench.stats import paired_comparison, seed_comparison
 
-    name_a, suite_a, models_a = load_method(spec_a)
-    name_b, suite_b, models_b = load_method(spec_b)
+    name_a, suite_a, models_a, prediction_a = load_method(spec_a)
+    name_b, suite_b, models_b, prediction_b = load_method(spec_b)
     if suite_a.get("id") != suite_b.get("id"):
         raise CompareError(f"different suites ({suite_a.get('id')} and {suite_b.get('id')}): "
                            "their episodes do not pair")
@@ -81,6 +82,11 @@ def compare(spec_a: str, spec_b: str, *, seed: int = 0) -> dict:
                                  figure=figure, higher_is_better=higher, names=names, seed=seed)
                for figure, value, higher in FIGURES]
     result = {"a": name_a, "b": name_b, "suite": suite_a.get("id"), "comparisons": results}
+    if prediction_a != prediction_b:
+        result["caveat"] = (
+            f"A's runs were driven with {prediction_a}, B's with {prediction_b}: each "
+            "prediction differs by its last bits, which the closed loop makes a slightly "
+            "different path (as between machines), so part of a small difference may be that")
     if max(len(models_a), len(models_b)) > 1:  # a recipe's seeds: does the difference hold?
         result["over_seeds"] = [
             seed_comparison([per_episode(runs, value) for runs in models_a],

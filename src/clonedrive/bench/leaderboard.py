@@ -147,12 +147,24 @@ def _plot_series(report: dict) -> dict[str, dict[str, dict[str, tuple]]]:
             for entry, model in report.get("models", {}).items()}
 
 
+def _mixed_prediction(report: dict) -> str:
+    """A sentence where a merged run's inputs predicted in different ways (bench.json's
+    ``prediction``, :func:`clonedrive.bench.merge.merge_reports`), else ``""``."""
+    value = report.get("prediction")
+    if not isinstance(value, str) or not value.startswith("mixed: "):
+        return ""
+    return (f"Not every run was driven alike ({value.removeprefix('mixed: ')}): runs made one "
+            "way differ from the other's by the last bits of each prediction, as between "
+            "machines.")
+
+
 def markdown(report: dict, images: list[str]) -> str:
     suite = report["suite"]
     method_head, method_rows, model_head, model_rows = tables(report)
     lines = [f"# Benchmark: suite {_md(suite['id'])}", "", _md(suite.get("description", "")), "",
              f"Speed control: {_md(report['speed_control'])}. "
-             f"{'Complete.' if report.get('complete') else 'INCOMPLETE: runs still missing.'}",
+             f"{'Complete.' if report.get('complete') else 'INCOMPLETE: runs still missing.'}"
+             + (f" {_md(_mixed_prediction(report))}" if _mixed_prediction(report) else ""),
              "", "## Methods (mean ± std over the models of a method)", ""]
     lines += _markdown_table(method_head, method_rows)
     lines += ["", "## Models by split", ""]
@@ -221,7 +233,8 @@ def _html(report: dict, images: list[Path]) -> str:
         "padding:3px 8px;font-size:13px}img{max-width:100%}</style></head><body>"
         f"<h1>Benchmark: suite {html.escape(suite['id'])}</h1>"
         f"<p>{html.escape(suite.get('description', ''))}</p>"
-        f"<p>Speed control: {html.escape(report['speed_control'])}.</p>"
+        f"<p>Speed control: {html.escape(report['speed_control'])}. "
+        f"{html.escape(_mixed_prediction(report))}</p>"
         "<h2>Methods (mean ± std over the models of a method)</h2>"
         f"{table(method_head, method_rows)}<h2>Models by split</h2>"
         f"{table(model_head, model_rows)}{pictures}</body></html>")

@@ -138,7 +138,8 @@ def merge_reports(named: Sequence[tuple[str, dict]], *, compact: bool = False,
                                      for source in _sources(name, report)]},
         "speed_control": first.get("speed_control") or "as each input run says",
         "driving": _driving(named),
-        "rendering": first.get("rendering"), "complete": True,
+        "rendering": first.get("rendering"), "prediction": _prediction(named),
+        "complete": True,
         "reference": {} if compact else reference, "models": models, "methods": methods,
         "split_names": split_names, "dev_agreement": dev_agreement(models),
     }
@@ -159,6 +160,15 @@ def _driving(named: Sequence[tuple[str, dict]]) -> dict[str, dict]:
                 raise MergeError(f"{name}: method {label!r} drives with other settings there "
                                  f"({settings}) than in another run ({driving[label]})")
     return driving
+
+
+def _prediction(named: Sequence[tuple[str, dict]]) -> str:
+    """How the inputs' policies predicted: one way, or each way named (``bench compare`` then
+    says the runs were not all driven alike)."""
+    from clonedrive.bench.bench_file import prediction_of
+
+    ways = list(dict.fromkeys(prediction_of(report) for _, report in named))
+    return ways[0] if len(ways) == 1 else "mixed: " + "; ".join(ways)
 
 
 def _sources(name: str, report: dict) -> list[str]:

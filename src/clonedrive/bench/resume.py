@@ -6,7 +6,8 @@ batches, takes the runs of the batches whose every episode is there, and drives 
 The batches are cut as before, so each one is driven exactly as the first run would have
 driven it, and the resumed bench.json equals an uninterrupted run's.
 
-Only a run made with the same suite, models, settings and renderer is resumed; any other
+Only a run made with the same suite, models, settings, renderer and way of predicting
+(``prediction``) is resumed; any other
 bench.json there is refused with the field that differs (a worker count may differ: it does
 not change the results).
 """
@@ -22,7 +23,7 @@ if TYPE_CHECKING:
 #: Settings that do not change what a bench run drives, so may differ when it is resumed.
 FREE_SETTINGS = ("workers", "ray")
 #: bench.json's fields that must be the same as this run's for its runs to be kept.
-MATCHED_FIELDS = ("format", "suite", "settings", "driving", "rendering")
+MATCHED_FIELDS = ("format", "suite", "settings", "driving", "rendering", "prediction")
 
 
 class ResumeError(ValueError):
@@ -58,6 +59,10 @@ def _comparable(field: str, value: object, defaults: dict) -> object:
     if field == "settings" and isinstance(value, dict):
         return {key: item for key, item in {**defaults, **value}.items()
                 if key not in FREE_SETTINGS}
+    if field == "prediction":
+        from clonedrive.bench.bench_file import prediction_of
+
+        return prediction_of({"prediction": value})
     if field == "driving" and isinstance(value, dict):
         return {label: with_defaults(settings) if isinstance(settings, dict) else settings
                 for label, settings in value.items()}

@@ -170,6 +170,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True,
     from clonedrive.base.workers import default_workers, run_tasks
     from clonedrive.bench.driving import drive_batch
     from clonedrive.bench.leaderboard import write_leaderboard
+    from clonedrive.drivers.policy import PREDICTION
     from clonedrive.sim.engine import renderer_info
 
     out = Path(out_dir)
@@ -190,6 +191,7 @@ def bench(config: BenchConfig, out_dir: str | Path, *, progress: bool = True,
         "driving": {_label_and_path(model)[0]: _model_settings(model, config)
                     for model in config.models},
         "rendering": {**renderer_info(config.renderer), "full_frame": config.full_frame},
+        "prediction": PREDICTION,
         "complete": False,
     }
     results = _resumed_results(out, report, tasks) if resume else {}

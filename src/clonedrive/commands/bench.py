@@ -184,6 +184,8 @@ def _compare(args) -> int:
         print(json.dumps(result, indent=2))
         return 0
     print(f"A = {result['a']}, B = {result['b']}, suite {result['suite']}")
+    if result.get("caveat"):
+        print(f"note: {result['caveat']}")
     for item in result["comparisons"]:
         _print_comparison(item, f"over {item['episodes']} episodes", "")
     for item in result.get("over_seeds", []):

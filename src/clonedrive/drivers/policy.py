@@ -44,6 +44,13 @@ if TYPE_CHECKING:
     import keras
 
 
+#: How :meth:`NetworkPolicy.predict` puts frames through the network, as bench.json records it
+#: (``prediction``): runs made another way differ from these by the last bits of each
+#: prediction, which a closed loop amplifies into a slightly different path.
+PREDICTION = "each frame alone"
+#: What bench runs made before ``prediction`` was recorded (2026-12-07) did.
+PREDICTION_BEFORE = "lock-step cars' frames batched (before 2026-12-07)"
+
 class Policy(Protocol):
     """Anything that drives from the center camera: the network, a recorded replay, a test.
 

@@ -148,7 +148,8 @@ def test_compare_says_when_the_two_runs_predicted_another_way(
     assert "caveat" not in json.loads(capsys.readouterr().out)
     assert main(["bench", "compare", str(paths[0]), str(paths[1])]) == 0
     printed = capsys.readouterr().out
-    assert f"note: A's runs were driven with {PREDICTION_BEFORE}, B's with {PREDICTION}" in printed
+    assert f"note: A and B did not predict alike (A: {PREDICTION_BEFORE}; B: {PREDICTION})" \
+        in printed
 
 
 def test_the_label_permutation_p_value_is_exact_for_few_models() -> None:

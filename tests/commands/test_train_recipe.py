@@ -93,11 +93,11 @@ def test_a_recipe_with_a_finetune_trains_two_stages(tmp_path: Path):
     """[finetune] is a second stage from the first one's best model; OUT/model.keras is it."""
     from importlib import resources
 
-    text = resources.files("clonedrive.recipes").joinpath("agile.toml").read_text("utf-8")
-    text = text.replace('name = "agile"', 'name = "staged"')
-    if "[finetune]" not in text:
-        text = text.replace("[drive]", "[finetune]\nepochs = 1\nlearning_rate = 0.0003\n"
-                                       "consistency = 10\n\n[drive]")
+    text = resources.files("clonedrive.recipes").joinpath("best.toml").read_text("utf-8")
+    text = text.replace('name = "best"', 'name = "staged"')
+    start, end = text.index("[[finetune]]"), text.index("[drive]")  # one [finetune] table
+    text = (text[:start] + "[finetune]\nepochs = 1\nlearning_rate = 0.0003\nconsistency = 10\n\n"
+            + text[end:])
     recipe = tmp_path / "staged.toml"
     recipe.write_text(text, encoding="utf-8")
     out = tmp_path / "run"
@@ -126,19 +126,17 @@ def test_recipe_best_trains_three_stages_each_from_the_one_before(best_run: Path
     assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 6}
 
 
-def test_recipe_agile_trains_two_stages_with_a_wider_hold(tmp_path: Path):
-    """``agile`` (best v5): one consistency stage at weight 30, and a hold of 0.005."""
+def test_recipe_agile_trains_best_s_stages_with_a_milder_penalty(tmp_path: Path):
+    """``agile``: best's three stages, the consistency penalty at weight 45."""
     out = tmp_path / "run"
     assert main(["train", str(LAKE), "--recipe", "agile", "--epochs", "1", "--batch-size", "64",
                  "--no-h5", "--out", str(out), "--json"]) == 0
-    base, final = (json.loads((folder / "config.json").read_text())
-                   for folder in (out / "base", out))
-    assert final["init_from"] == str(out / "base" / "model.keras")
-    assert not (out / "stage2").exists()
-    assert [(config["consistency"], config["epochs"]) for config in (base, final)] == [
-        (0, 1), (30, 2)]
-    assert stored_settings(out / "model.keras").steering_hold == 0.005
-    assert read_notes(out / "model.keras")["recipe"] == {"name": "agile", "version": 1}
+    configs = [json.loads((folder / "config.json").read_text())
+               for folder in (out / "base", out / "stage2", out)]
+    assert [(config["consistency"], config["epochs"]) for config in configs] == [
+        (0, 1), (45, 2), (45, 1)]
+    assert stored_settings(out / "model.keras").steering_hold == 0.004
+    assert read_notes(out / "model.keras")["recipe"] == {"name": "agile", "version": 2}
 
 
 def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
@@ -153,9 +151,9 @@ def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
     from clonedrive.recipes.book import load_recipe_file
     from clonedrive.recipes.training import run_stages, train_stages
 
-    recipe = load_recipe_file("agile")  # two stages
+    recipe = load_recipe_file("best")
     stages = [dataclasses.replace(config, epochs=1, batch_size=64, cache="memmap",
-                                  export_h5=False) for config in train_stages(recipe)]
+                                  export_h5=False) for config in train_stages(recipe)[:2]]
     assert len(stages) == 2
     data = recipe.folders_recipe([LAKE])
     run_stages(stages, data, tmp_path / "shared", progress=True)

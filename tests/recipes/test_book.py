@@ -3,7 +3,6 @@ naming the file and the key."""
 
 from __future__ import annotations
 
-import dataclasses
 from importlib import resources
 
 import pytest
@@ -127,23 +126,22 @@ def test_not_toml_is_refused(tmp_path):
         load_recipe_file(path)
 
 
-def test_agile_is_best_v5_one_consistency_stage_and_a_wider_hold():
+def test_agile_is_best_with_a_milder_consistency_penalty():
     best, agile = load_recipe_file("best"), load_recipe_file("agile")
     assert agile.recordings == best.recordings and agile.data_table == best.data_table
-    assert agile.evaluation == best.evaluation
+    assert agile.evaluation == best.evaluation and agile.driving == best.driving
     stages, best_stages = train_stages(agile), train_stages(best)
     assert stages[0] == best_stages[0]
     assert [(stage.epochs, stage.learning_rate, stage.consistency)
             for stage in best_stages[1:]] == [
         (2, 0.0005, 60), (1, 0.0005, 60)]  # the last stage keeps the one before's settings
     assert [(stage.epochs, stage.learning_rate, stage.consistency) for stage in stages[1:]] == [
-        (2, 0.0005, 30)]
-    assert best.driving == dataclasses.replace(agile.driving, steering_hold=0.004)
+        (2, 0.0005, 45), (1, 0.0005, 45)]
 
 
 def test_a_finetune_that_is_not_a_table_is_refused(tmp_path):
     path = tmp_path / "bad.toml"
-    text = _text("agile")  # one [finetune] table
+    text = _one_finetune_table(_text("best"))
     without = text[:text.index("[finetune]")] + text[text.index("[drive]"):]
     path.write_text('finetune = "x"\n' + without, encoding="utf-8")
     with pytest.raises(ValueError, match="must be a table"):
@@ -155,3 +153,11 @@ def test_each_stage_trains_in_its_own_folder(tmp_path):
     assert stage_dirs(tmp_path, 2) == [tmp_path / "base", tmp_path]
     assert stage_dirs(tmp_path, 4) == [tmp_path / "base", tmp_path / "stage2",
                                        tmp_path / "stage3", tmp_path]
+
+
+def _one_finetune_table(text: str) -> str:
+    """A recipe's text with its ``[[finetune]]`` tables replaced by one ``[finetune]`` table."""
+    start, end = text.index("[[finetune]]"), text.index("[drive]")
+    return (text[:start] + "[finetune]\nepochs = 2\nlearning_rate = 0.0005\nconsistency = 30\n\n"
+            + text[end:])
+

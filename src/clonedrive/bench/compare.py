@@ -84,8 +84,8 @@ def compare(spec_a: str, spec_b: str, *, seed: int = 0) -> dict:
     result = {"a": name_a, "b": name_b, "suite": suite_a.get("id"), "comparisons": results}
     if prediction_a != prediction_b:
         result["caveat"] = (
-            f"A's runs were driven with {prediction_a}, B's with {prediction_b}: each "
-            "prediction differs by its last bits, which the closed loop makes a slightly "
+            f"A and B did not predict alike (A: {prediction_a}; B: {prediction_b}): each "
+            "prediction then differs by its last bits, which the closed loop makes a slightly "
             "different path (as between machines), so part of a small difference may be that")
     if max(len(models_a), len(models_b)) > 1:  # a recipe's seeds: does the difference hold?
         result["over_seeds"] = [

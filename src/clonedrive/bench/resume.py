@@ -7,9 +7,8 @@ The batches are cut as before, so each one is driven exactly as the first run wo
 driven it, and the resumed bench.json equals an uninterrupted run's.
 
 Only a run made with the same suite, models, settings, renderer and way of predicting
-(``prediction``) is resumed; any other
-bench.json there is refused with the field that differs (a worker count may differ: it does
-not change the results).
+(``prediction``) is resumed; any other bench.json there is refused with the field that differs
+(a worker count may differ: it does not change the results).
 """
 
 from __future__ import annotations

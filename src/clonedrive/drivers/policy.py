@@ -48,8 +48,11 @@ if TYPE_CHECKING:
 #: (``prediction``): runs made another way differ from these by the last bits of each
 #: prediction, which a closed loop amplifies into a slightly different path.
 PREDICTION = "each frame alone"
-#: What bench runs made before ``prediction`` was recorded (2026-12-07) did.
-PREDICTION_BEFORE = "lock-step cars' frames batched (before 2026-12-07)"
+#: What a bench.json without ``prediction`` is taken to mean: the code before 2026-12-07
+#: batched the lock-step cars' frames (runs made on 2026-12-07 between commits 99929f5 and
+#: 5629524 predicted each frame alone without saying so).
+PREDICTION_BEFORE = "not recorded (lock-step cars' frames batched, before 2026-12-07)"
+
 
 class Policy(Protocol):
     """Anything that drives from the center camera: the network, a recorded replay, a test.

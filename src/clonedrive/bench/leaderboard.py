@@ -161,10 +161,11 @@ def _mixed_prediction(report: dict) -> str:
 def markdown(report: dict, images: list[str]) -> str:
     suite = report["suite"]
     method_head, method_rows, model_head, model_rows = tables(report)
+    mixed = _mixed_prediction(report)
     lines = [f"# Benchmark: suite {_md(suite['id'])}", "", _md(suite.get("description", "")), "",
              f"Speed control: {_md(report['speed_control'])}. "
              f"{'Complete.' if report.get('complete') else 'INCOMPLETE: runs still missing.'}"
-             + (f" {_md(_mixed_prediction(report))}" if _mixed_prediction(report) else ""),
+             + (f" {_md(mixed)}" if mixed else ""),
              "", "## Methods (mean ± std over the models of a method)", ""]
     lines += _markdown_table(method_head, method_rows)
     lines += ["", "## Models by split", ""]
@@ -225,6 +226,7 @@ def _html(report: dict, images: list[Path]) -> str:
         f'<img alt="{html.escape(p.name)}" src="data:image/png;base64,'
         f'{base64.b64encode(p.read_bytes()).decode()}">' for p in images)
     suite = report["suite"]
+    mixed = _mixed_prediction(report)
     return (
         "<!DOCTYPE html><html><head><meta charset='utf-8'>"
         f"<title>clonedrive bench {html.escape(suite['id'])}</title><style>"
@@ -233,8 +235,8 @@ def _html(report: dict, images: list[Path]) -> str:
         "padding:3px 8px;font-size:13px}img{max-width:100%}</style></head><body>"
         f"<h1>Benchmark: suite {html.escape(suite['id'])}</h1>"
         f"<p>{html.escape(suite.get('description', ''))}</p>"
-        f"<p>Speed control: {html.escape(report['speed_control'])}. "
-        f"{html.escape(_mixed_prediction(report))}</p>"
+        f"<p>Speed control: {html.escape(report['speed_control'])}."
+        f"{' ' + html.escape(mixed) if mixed else ''}</p>"
         "<h2>Methods (mean ± std over the models of a method)</h2>"
         f"{table(method_head, method_rows)}<h2>Models by split</h2>"
         f"{table(model_head, model_rows)}{pictures}</body></html>")

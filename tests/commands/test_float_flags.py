@@ -58,8 +58,18 @@ def test_dagger_refuses_what_cannot_train(tmp_path: Path, flag: str, value: str,
                                              ("--full-speed-at", "0.5"),
                                              ("--full-speed-at", "nan"),
                                              ("--steering-scale-from", "3"),
-                                             ("--steering-scale-from", "nan")])
+                                             ("--steering-scale-from", "nan"),
+                                             ("--caution", "-1"), ("--caution", "inf"),
+                                             ("--caution-from", "0.5"),
+                                             ("--caution-from", "nan")])
 def test_the_steering_options_are_refused_as_flags(tmp_path: Path, tiny_model_path: Path,
                                                    flag: str, value: str) -> None:
     result = run_clonedrive("evaluate", tiny_model_path, "--out", tmp_path / "e", flag, value)
     assert f"argument {flag}" in refused(result, "evaluate", 2)
+
+
+def test_caution_without_mirror_averaging_is_one_line_naming_both(tmp_path: Path,
+                                                                  tiny_model_path: Path) -> None:
+    result = run_clonedrive("evaluate", tiny_model_path, "--out", tmp_path / "e",
+                            "--caution", "40", "--no-mirror-average")
+    assert "caution needs mirror averaging" in refused(result, "evaluate", 2)

@@ -30,7 +30,8 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     notes = read_notes(best_run / "model.keras")
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
-        mirror_average=True, steering_hold=0.004, steering_filter_s=0.05, full_speed_at=0.95)
+        mirror_average=True, steering_hold=0.004, steering_filter_s=0.05, full_speed_at=0.95,
+        caution=40.0, caution_from=0.012)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -55,7 +56,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["mirror_average"] is True and header["steering_hold"] == 0.004
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 6}
+    assert header["recipe"] == {"name": "best", "version": 7}
     assert header["steering_scale_from_mph"] == 0.0
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
@@ -123,20 +124,7 @@ def test_recipe_best_trains_three_stages_each_from_the_one_before(best_run: Path
     assert [config["consistency"] for config in (base, middle, final)] == [0, 60, 60]
     assert [config["epochs"] for config in (base, middle, final)] == [1, 2, 1]
     assert [config["batch_size"] for config in (base, middle, final)] == [64, 64, 64]
-    assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 6}
-
-
-def test_recipe_agile_trains_best_s_stages_with_a_milder_penalty(tmp_path: Path):
-    """``agile``: best's three stages, the consistency penalty at weight 45."""
-    out = tmp_path / "run"
-    assert main(["train", str(LAKE), "--recipe", "agile", "--epochs", "1", "--batch-size", "64",
-                 "--no-h5", "--out", str(out), "--json"]) == 0
-    configs = [json.loads((folder / "config.json").read_text())
-               for folder in (out / "base", out / "stage2", out)]
-    assert [(config["consistency"], config["epochs"]) for config in configs] == [
-        (0, 1), (45, 2), (45, 1)]
-    assert stored_settings(out / "model.keras").steering_hold == 0.004
-    assert read_notes(out / "model.keras")["recipe"] == {"name": "agile", "version": 2}
+    assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 7}
 
 
 def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(

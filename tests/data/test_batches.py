@@ -123,6 +123,41 @@ def test_cache_fill_skips_bad_files_and_memmap_lives_in_the_folder(tmp_path: Pat
     assert not (tmp_path / "cache.u8").exists()
 
 
+def _resident_pages(path: Path) -> int:
+    """Pages of the file at ``path`` mapped into this process and resident (/proc/self/smaps)."""
+    resident, inside = 0, False
+    for line in Path("/proc/self/smaps").read_text().splitlines():
+        if line[:1].isdigit() or line[:1] in "abcdef":
+            inside = line.rstrip().endswith(str(path))
+        elif inside and line.startswith("Rss:"):
+            resident += int(line.split()[1]) // 4
+    return resident
+
+
+def test_a_memmap_cache_lets_go_of_its_pages_and_keeps_its_frames(tmp_path: Path,
+                                                                   monkeypatch) -> None:
+    """Past MAPPED_BYTES_LIMIT of frames read or written, the process drops the memmap's pages
+    (its resident memory does not grow with the cache); the frames read back the same."""
+    from clonedrive.data import batches
+
+    paths = sorted((LAKE / "IMG").glob("*.jpg"))[:12]
+    cache = ImageCache(paths, memmap_path=tmp_path / "cache.u8", memory_limit_bytes=0)
+    frame_pages = cache.frame_bytes // 4096
+    monkeypatch.setattr(batches, "MAPPED_BYTES_LIMIT", 3 * cache.frame_bytes)
+    cache.fill(workers=1)
+    assert cache.mapped_bytes <= 3 * cache.frame_bytes  # released on the way
+    assert _resident_pages(cache.memmap_path) <= 4 * (frame_pages + 1)
+    for index in (0, 5, 11, 7):
+        np.testing.assert_array_equal(cache.get(np.array([index]))[0], read_rgb(paths[index]))
+    np.testing.assert_array_equal(cache.get(np.arange(12)),
+                                  np.stack([read_rgb(path) for path in paths]))
+    assert _resident_pages(cache.memmap_path) <= 16 * (frame_pages + 1)
+    in_memory = ImageCache(paths)  # an in-memory cache has nothing to let go of
+    in_memory.fill(workers=1)
+    assert in_memory.mapped_bytes == 0
+    cache.close(delete=True)
+
+
 def test_batches_shapes_flips_weights_and_order(tmp_path: Path) -> None:
     recipe = parse_recipe(f'[[recording]]\npath = "{LAKE.as_posix()}"\ncameras = "center"\n'
                           "weight = 2.5\n")

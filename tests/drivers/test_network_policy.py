@@ -332,3 +332,53 @@ def test_speed_scale_multiplies_the_learned_target_speed_under_the_cap(
     assert faster.driving_settings().speed_scale == 1.05
     with pytest.raises(ValueError, match="speed_scale"):
         NetworkPolicy(model, speed_scale=3.0)
+
+
+def test_caution_slows_where_a_frame_and_its_mirror_image_disagree(speed_head_model) -> None:
+    model = speed_head_model
+    images = frames(6, 13)
+    plain = NetworkPolicy(model)
+    careful = NetworkPolicy(model, 30.0, mirror_average=True, caution=40.0, caution_from=0.01)
+    # The disagreement is half the gap between the frame's steering and its mirror image's
+    # (negated): how far each view is from the steering driven.
+    steering = plain.predict_steering(images)
+    steering_flip = plain.predict_steering(np.ascontiguousarray(images[:, :, ::-1]))
+    careful.predict(images)
+    np.testing.assert_allclose(careful.last_disagreement, np.abs(steering + steering_flip) / 2,
+                               atol=1e-6)
+    assert careful.last_disagreement.shape == (6,) and careful.last_disagreement.max() > 0
+    plain.predict(images)
+    assert not plain.last_disagreement.any()  # one view: nothing to disagree with
+    # Below caution_from nothing changes; above it the target is divided by 1 + C x excess.
+    assert careful.target_speed_mph(0.0, learned_speed_mph=25.0, disagreement=0.01) == 25.0
+    assert careful.target_speed_mph(0.0, learned_speed_mph=25.0,
+                                    disagreement=0.035) == pytest.approx(12.5)
+    assert careful.target_speed_mph(0.0, disagreement=0.035) == pytest.approx(15.0)
+    # Never below the floor; a non-finite disagreement does not slow.
+    assert careful.target_speed_mph(0.0, learned_speed_mph=25.0,
+                                    disagreement=1.0) == pytest.approx(12.0)
+    assert careful.target_speed_mph(0.0, learned_speed_mph=25.0,
+                                    disagreement=float("nan")) == 25.0
+    # act() slows for the frame it sees; options and settings carry both numbers.
+    careful.act(images[0], 0.0)
+    learned = float(careful.predict(images[:1])[1][0])
+    want = careful.target_speed_mph(careful.steering_filter.steering, learned_speed_mph=learned,
+                                    disagreement=float(careful.last_disagreement[0]))
+    assert careful.controller.set_speed_mph == pytest.approx(want)
+    again = NetworkPolicy(model, **careful.options())
+    assert (again.caution, again.caution_from) == (40.0, 0.01)
+    assert careful.driving_settings().caution == 40.0
+
+
+def test_caution_needs_mirror_averaging_and_a_number_in_range(speed_head_model) -> None:
+    # Without mirror averaging there is nothing to compare: a file's caution does nothing.
+    single = NetworkPolicy(speed_head_model, 30.0, caution=10.0)
+    single.predict(frames(2, 3))
+    assert single.target_speed_mph(0.0, learned_speed_mph=25.0,
+                                   disagreement=float(single.last_disagreement[0])) == 25.0
+    for bad in (-1.0, 101.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="caution"):
+            NetworkPolicy(speed_head_model, mirror_average=True, caution=bad)
+    for bad in (-0.01, 0.2, float("nan")):
+        with pytest.raises(ValueError, match="caution_from"):
+            NetworkPolicy(speed_head_model, mirror_average=True, caution=1.0, caution_from=bad)

@@ -94,7 +94,10 @@ def test_bad_notes_are_refused_naming_the_file(notes, message, tiny_model_path, 
                                     {"full_speed_at": 1.01}, {"full_speed_at": "0.9"},
                                     {"steering_scale_from_mph": 3.0},
                                     {"steering_scale_from_mph": -24.0},
-                                    {"steering_scale_from_mph": float("nan")}])
+                                    {"steering_scale_from_mph": float("nan")},
+                                    {"caution": -1.0, "mirror_average": True},
+                                    {"caution": 1e3, "mirror_average": True},
+                                    {"caution_from": 0.5}, {"caution_from": float("inf")}])
 def test_bad_settings_are_refused(values):
     with pytest.raises(ValueError):
         DrivingSettings(**values)
@@ -108,6 +111,8 @@ def test_describe_names_what_is_on():
         DrivingSettings(full_speed_at=0.92).describe()
     assert "steering times 24 mph / speed above 24 mph" in \
         DrivingSettings(steering_scale_from_mph=24).describe()
+    assert "mirror image disagree by more than 0.012 (caution 40)" in \
+        DrivingSettings(mirror_average=True, caution=40, caution_from=0.012).describe()
 
 
 def test_a_file_made_before_speed_scale_drives_at_the_learned_speed(tiny_model_path, tmp_path):
@@ -128,6 +133,7 @@ def test_a_recorded_run_without_a_later_setting_reads_as_its_default():
     assert with_defaults({"speed_scale": 1.05})["speed_scale"] == 1.05
     assert with_defaults(recorded)["full_speed_at"] == 1.0  # before full_speed_at existed
     assert with_defaults(recorded)["steering_scale_from_mph"] == 0.0
+    assert with_defaults(recorded)["caution"] == 0.0  # before caution existed
 
 
 def test_copy_notes_gives_a_file_anothers_settings(tiny_model_path, tmp_path):

@@ -66,7 +66,7 @@ def test_a_copied_and_edited_recipe_is_used(tmp_path):
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
-    assert recipe.label() == "mine v6"  # the copy keeps best's version
+    assert recipe.label() == "mine v7"  # the copy keeps best's version
     assert recipe.train_config().epochs == 2
     assert recipe.driving.steering_hold == 0.008
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
@@ -93,7 +93,7 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
     ("best", ("[train]", "[train]\nwarp = 9"), "warp"),
     ("best", ("steering_hold = 0.004", "steering_hold = 2.0"), "steering_hold"),
     ("best", ('name = "best"', 'name = ""'), "needs a name"),
-    ("best", ("version = 6", "version = 0"), "version"),
+    ("best", ("version = 7", "version = 0"), "version"),
     ("best", ("laps = 3", "laps = 0"), "laps"),
     ("best", ('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
     ("best", ("correction = 0.054", "correction = 7"), "correction"),
@@ -115,7 +115,7 @@ def test_bad_recipes_are_refused_naming_file_and_key(tmp_path, name, edit, messa
 
 
 def test_unknown_recipe_names_the_built_in_ones():
-    with pytest.raises(FileNotFoundError, match="agile, best, writeup"):
+    with pytest.raises(FileNotFoundError, match="best, writeup"):
         load_recipe_file("bestest")
 
 
@@ -126,17 +126,10 @@ def test_not_toml_is_refused(tmp_path):
         load_recipe_file(path)
 
 
-def test_agile_is_best_with_a_milder_consistency_penalty():
-    best, agile = load_recipe_file("best"), load_recipe_file("agile")
-    assert agile.recordings == best.recordings and agile.data_table == best.data_table
-    assert agile.evaluation == best.evaluation and agile.driving == best.driving
-    stages, best_stages = train_stages(agile), train_stages(best)
-    assert stages[0] == best_stages[0]
-    assert [(stage.epochs, stage.learning_rate, stage.consistency)
-            for stage in best_stages[1:]] == [
-        (2, 0.0005, 60), (1, 0.0005, 60)]  # the last stage keeps the one before's settings
+def test_best_fine_tunes_in_two_consistency_stages():
+    stages = train_stages(load_recipe_file("best"))
     assert [(stage.epochs, stage.learning_rate, stage.consistency) for stage in stages[1:]] == [
-        (2, 0.0005, 45), (1, 0.0005, 45)]
+        (2, 0.0005, 60), (1, 0.0005, 60)]  # the last stage keeps the one before's settings
 
 
 def test_a_finetune_that_is_not_a_table_is_refused(tmp_path):
@@ -161,3 +154,41 @@ def _one_finetune_table(text: str) -> str:
     return (text[:start] + "[finetune]\nepochs = 2\nlearning_rate = 0.0005\nconsistency = 30\n\n"
             + text[end:])
 
+
+
+def test_a_recipes_bench_names_the_splits_the_demo_benches(tmp_path):
+    from clonedrive.bench.suite import SuiteError
+    from clonedrive.pipelines.demo import bench_plan
+
+    path = tmp_path / "benched.toml"
+    path.write_text(_text("writeup") + '\n[bench]\nsplits = ["dev", "hard-30"]\n',
+                    encoding="utf-8")
+    recipe = load_recipe_file(path)
+    assert recipe.bench.splits == ("dev", "hard-30") and recipe.bench.suite is None
+    plan = bench_plan(DemoConfig(recipe=str(path), workers=1), recipe, tmp_path / "m.keras")
+    assert plan.splits == ("dev", "hard-30") and plan.suite == "v4" and plan.workers == 1
+    assert plan.models == (f"writeup={tmp_path / 'm.keras'}",)
+    assert bench_plan(DemoConfig(recipe=str(path), quick=True), recipe, tmp_path) is None
+    assert load_recipe_file("writeup").bench is None
+    # A split the suite does not have is refused when the demo plans, before any work.
+    path.write_text(_text("writeup") + '\n[bench]\nsuite = "v2"\nsplits = ["dev"]\n',
+                    encoding="utf-8")
+    with pytest.raises(SuiteError, match="dev"):
+        bench_plan(DemoConfig(recipe=str(path)), load_recipe_file(path), tmp_path)
+
+
+@pytest.mark.parametrize("table, message", [
+    ('[bench]\nsplits = "dev"\n', "splits"),
+    ("[bench]\nsplits = []\n", "splits"),
+    ('[bench]\nsplits = ["dev"]\nsuite = 4\n', "suite"),
+    ('[bench]\nsplits = ["dev"]\nworkers = 2\n', "workers"),
+    ('bench = 3\n', r"\[bench\] must be a table"),
+])
+def test_a_bad_bench_table_is_refused_naming_the_file(tmp_path, table, message):
+    path = tmp_path / "bad.toml"
+    text = _text("writeup")
+    text = table + text if not table.startswith("[") else text + "\n" + table
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match=message) as caught:
+        load_recipe_file(path)
+    assert "bad.toml" in str(caught.value)

@@ -65,6 +65,8 @@ class BenchConfig:
     mirror_average: bool | None = None  #: average each frame's prediction with its mirror's
     speed_scale: float | None = None  #: a speed head's target speed times this
     full_speed_at: float | None = None  #: a speed head's targets from this fraction: full speed
+    caution: float | None = None  #: slower where a frame and its mirror image disagree
+    caution_from: float | None = None  #: the disagreement below which caution does not slow
     scenery: bool = True
     max_seconds: float | None = None  #: cap on simulated seconds per episode (quick checks)
     offline_data: tuple[str, ...] = ()  #: held-out recordings for the offline MSE

@@ -20,7 +20,6 @@ DESCRIPTION = (
 EXAMPLES = (
     "clonedrive demo                      # the whole job into runs/demo/, recipe 'best'",
     "clonedrive demo --recipe writeup --out runs/writeup   # the seed write-up's system",
-    "clonedrive demo --recipe agile --out runs/agile  # better on hard tracks, a little less calm",
     "clonedrive demo --recipe my.toml     # a copy of a recipe file, edited",
     "clonedrive demo --quick --out runs/q  # every stage, small, in about a minute",
 )

@@ -73,6 +73,15 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                                  f"speed at the set speed, and stretch its targets from "
                                  f"{STRETCH_FROM:g} times the set speed up to match (1 = as "
                                  "learned; default: the model's own setting)")
+        parser.add_argument("--caution", type=_caution, default=None, metavar="C",
+                            help="slow where the network is unsure: divide the target speed "
+                                 "by 1 + C x the disagreement between a frame's steering and "
+                                 "its mirror image's (needs mirror averaging; 0 = off; "
+                                 "default: the model's own setting)")
+        parser.add_argument("--caution-from", type=_caution_from, default=None, metavar="D",
+                            help="the disagreement (steering units) below which --caution "
+                                 "does not slow: what the two views differ by where the "
+                                 "network knows the road (default: the model's own setting)")
 
 
 def _steering_filter_s(text: str) -> float:
@@ -108,6 +117,20 @@ def _full_speed_at(text: str) -> float:
     from clonedrive.network.driving_settings import check_full_speed_at
 
     return _checked_float(text, check_full_speed_at)
+
+
+def _caution(text: str) -> float:
+    """``--caution``'s value, refused by argparse (exit 2) outside the settings' range."""
+    from clonedrive.network.driving_settings import check_caution
+
+    return _checked_float(text, check_caution)
+
+
+def _caution_from(text: str) -> float:
+    """``--caution-from``'s value, refused by argparse (exit 2) outside the settings' range."""
+    from clonedrive.network.driving_settings import check_caution_from
+
+    return _checked_float(text, check_caution_from)
 
 
 def _checked_float(text: str, check) -> float:
@@ -163,5 +186,7 @@ def steering_options(args: argparse.Namespace) -> dict:
              "mirror_average": getattr(args, "mirror_average", None),
              "slow_in_curves": getattr(args, "slow_in_curves", None),
              "speed_scale": getattr(args, "speed_scale", None),
-             "full_speed_at": getattr(args, "full_speed_at", None)}
+             "full_speed_at": getattr(args, "full_speed_at", None),
+             "caution": getattr(args, "caution", None),
+             "caution_from": getattr(args, "caution_from", None)}
     return {name: value for name, value in given.items() if value is not None}

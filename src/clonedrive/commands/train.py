@@ -23,7 +23,7 @@ HELP = "train a Keras steering network on recordings (folders, with a recipe's s
 DESCRIPTION = (
     "Train a network that predicts steering (and with a speed head the expert's target speed) "
     "from one 160x320 RGB camera frame. The settings come from a recipe (--recipe, default "
-    "'best'; 'agile' is for hard tracks, 'writeup' the seed write-up's): the network, "
+    "'best'; 'writeup' is the seed write-up's): the network, "
     "epochs, learning rate, crop, side-camera correction, and how the model is to be driven, "
     "which is stored in the model file. Options override it one by one. Data comes from "
     "recording folders DIR ... (center + side cameras, mirrored copies), from the recipe's own "

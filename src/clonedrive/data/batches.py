@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import errno
 import math
+import mmap
 import os
 import shutil
 import threading
@@ -36,6 +37,11 @@ keras = import_keras()
 FRAME_BYTES = int(np.prod(FRAME_SHAPE))
 #: Caches larger than this go to a memmap file when a folder for it is given, bytes.
 DEFAULT_MEMORY_LIMIT_BYTES = 2 * 1024**3
+#: A memmap cache's frames written since the mapping was last released, at most: then the
+#: process lets go of its pages (they stay in the OS page cache, written ones included), so its
+#: resident memory does not grow with the cache's size. Frames are read back with ``pread``,
+#: which maps nothing.
+MAPPED_BYTES_LIMIT = 512 * 1024**2
 
 
 def read_rgb(path: str | os.PathLike, out: np.ndarray | None = None) -> np.ndarray:
@@ -71,7 +77,9 @@ class ImageCache:
     """Decoded uint8 RGB frames of ``paths``, decoded at most once each.
 
     Lives in memory, or in ``memmap_path`` (created, overwritten) when the frames would take
-    more than ``memory_limit_bytes``. ``decode_count`` counts JPEG decodes.
+    more than ``memory_limit_bytes``. ``decode_count`` counts JPEG decodes. A memmap is filled
+    through its mapping, at most about :data:`MAPPED_BYTES_LIMIT` of it mapped at a time, and
+    read with ``pread``: the process's resident memory does not grow with the cache.
 
     ``rows`` = ``(first, end)``: keep only those rows of each frame (the rows a cropping
     network and its augmentation read); :meth:`get` still returns whole frames, the other
@@ -94,11 +102,15 @@ class ImageCache:
         shape = (len(self.paths), end - first, *FRAME_SHAPE[1:])
         frame_bytes = FRAME_BYTES * (end - first) // FRAME_SHAPE[0]
         self.memmap_path: Path | None = None
+        self._reader: int | None = None  #: a memmap's file, opened for pread
         if memmap_path is not None and len(self.paths) * frame_bytes > memory_limit_bytes:
             self.memmap_path = Path(memmap_path)
             self.frames = reserved_memmap(self.memmap_path, shape)
+            self._reader = os.open(self.memmap_path, os.O_RDONLY)
         else:
             self.frames = np.empty(shape, dtype=np.uint8)
+        self.frame_bytes = frame_bytes
+        self.mapped_bytes = 0  #: bytes of a memmap read or written since its last release
         self.filled = np.zeros(len(self.paths), dtype=bool)
         self.failed: dict[int, ImageDecodeError] = {}  # index -> why it cannot be used
         self.decode_count = 0
@@ -126,7 +138,21 @@ class ImageCache:
         with self._lock:
             self.decode_count += 1
             self.filled[index] = True
+        self._touched(1)
         return True
+
+    def _touched(self, frames: int) -> None:
+        """Count ``frames`` written; past :data:`MAPPED_BYTES_LIMIT`, release a memmap's pages
+        from this process (``MADV_DONTNEED``: a shared file mapping keeps its data in the page
+        cache, written pages included)."""
+        if self.memmap_path is None or not isinstance(self.frames, np.memmap):
+            return
+        with self._lock:
+            self.mapped_bytes += frames * self.frame_bytes
+            if self.mapped_bytes <= MAPPED_BYTES_LIMIT:
+                return
+            self.mapped_bytes = 0
+            self.frames.base.madvise(mmap.MADV_DONTNEED)
 
     def fill(self, *, workers: int = 2, progress: bool = False) -> dict[int, ImageDecodeError]:
         """Decode every frame not yet cached (OpenCV decodes outside the GIL, so threads
@@ -154,14 +180,30 @@ class ImageCache:
             if int(index) in self.failed or not self._decode(int(index)):
                 raise self.failed[int(index)]
         first, end = self.rows
+        cached = self._read(indices)
         if (first, end) == (0, FRAME_SHAPE[0]):
-            return self.frames[indices]
+            return cached
         frames = np.zeros((len(indices), *FRAME_SHAPE), dtype=np.uint8)
-        frames[:, first:end] = self.frames[indices]
+        frames[:, first:end] = cached
         return frames
+
+    def _read(self, indices: np.ndarray) -> np.ndarray:
+        """The cached rows of the frames at ``indices``, a new array; from a memmap's file with
+        ``pread`` (what the mapping wrote is in the same page cache), so nothing is mapped."""
+        if self._reader is None:
+            return self.frames[indices]
+        cached = np.empty((len(indices), *self.frames.shape[1:]), dtype=np.uint8)
+        for row, index in enumerate(indices):
+            offset = (int(index) % len(self.paths)) * self.frame_bytes  # -1: the last, as numpy
+            if os.preadv(self._reader, [cached[row]], offset) != self.frame_bytes:
+                raise OSError(f"{self.memmap_path}: the image cache is shorter than it was made")
+        return cached
 
     def close(self, *, delete: bool = True) -> None:
         """Release the memmap (and delete its file if ``delete``)."""
+        if self._reader is not None:
+            os.close(self._reader)
+            self._reader = None
         if self.memmap_path is not None:
             if isinstance(self.frames, np.memmap):
                 self.frames.flush()

@@ -32,6 +32,9 @@ from clonedrive.network.crop import visible_rows
 from clonedrive.network.driving_settings import (
     STRETCH_FROM,
     DrivingSettings,
+    check_caution,
+    check_caution_from,
+    check_caution_needs_mirror,
     check_full_speed_at,
     check_speed_scale,
     check_steering_filter_s,
@@ -219,8 +222,12 @@ class NetworkPolicy:
         speed_scale: float = 1.0,
         full_speed_at: float = 1.0,
         steering_scale_from_mph: float = 0.0,
+        caution: float = 0.0,
+        caution_from: float = 0.0,
     ) -> None:
         check_model(model)
+        self.caution = check_caution(caution)
+        self.caution_from = check_caution_from(caution_from)
         self.speed_scale = check_speed_scale(speed_scale)
         self.full_speed_at = check_full_speed_at(full_speed_at)
         self.mirror_average = bool(mirror_average)
@@ -248,6 +255,9 @@ class NetworkPolicy:
         #: Which frames of the last :meth:`predict` batch had a NaN or infinite steering
         #: prediction (so a driver of several cars can count them per car).
         self.last_nonfinite = np.zeros(0, dtype=bool)
+        #: Per frame of the last :meth:`predict` batch: half the gap between its steering
+        #: prediction and its mirror image's (0 without ``mirror_average``).
+        self.last_disagreement = np.zeros(0, dtype=np.float32)
         #: What the model file says about itself (network.driving_settings.read_notes): the
         #: recipe that made it; {} for a model given in memory or a file without notes.
         self.notes: dict = {}
@@ -267,6 +277,7 @@ class NetworkPolicy:
         car.steering_filter = self.new_steering_filter()
         car.nan_predictions = 0
         car.last_nonfinite = np.zeros(0, dtype=bool)
+        car.last_disagreement = np.zeros(0, dtype=np.float32)
         return car
 
     def new_steering_filter(self) -> SteeringFilter:
@@ -298,9 +309,11 @@ class NetworkPolicy:
         return self.forward.portable([2 if self.mirror_average else 1])
 
     def target_speed_mph(self, steering: float, set_speed_mph: float | None = None,
-                         learned_speed_mph: float | None = None) -> float:
+                         learned_speed_mph: float | None = None,
+                         disagreement: float = 0.0) -> float:
         """The speed to aim for when the network steers ``steering`` and (with a speed head)
-        predicts ``learned_speed_mph``.
+        predicts ``learned_speed_mph``, its steering and its mirror image's being
+        ``disagreement`` apart (half the gap; ``caution`` slows for it).
 
         ``set_speed_mph`` defaults to this policy's set speed (an evaluator running several
         cars at different set speeds passes each car's own).
@@ -315,6 +328,9 @@ class NetworkPolicy:
         if self.slow_in_curves:
             fraction = max(self.min_speed_fraction, 1.0 - self.curve_gain * abs(steering))
             target = min(target, set_speed * fraction)
+        if self.caution and math.isfinite(disagreement):
+            excess = max(0.0, disagreement - self.caution_from)
+            target = max(floor, target / (1.0 + self.caution * excess))
         return target
 
     def act(self, image_rgb: np.ndarray, speed_mph: float) -> tuple[float, float]:
@@ -323,10 +339,11 @@ class NetworkPolicy:
                 f"expected a uint8 RGB image of shape {IMAGE_SHAPE}, "
                 f"got {image_rgb.dtype} {image_rgb.shape}"
             )
-        steering, learned, _ = self._predict(image_rgb[np.newaxis])
+        steering, learned, _, disagreement = self._predict(image_rgb[np.newaxis])
         steer = self.steering_filter.update(float(steering[0]), speed_mph)
         self.controller.set_speed_mph = self.target_speed_mph(
-            steer, learned_speed_mph=None if learned is None else float(learned[0]))
+            steer, learned_speed_mph=None if learned is None else float(learned[0]),
+            disagreement=float(disagreement[0]))
         throttle = self.controller.update(speed_mph)
         return steer, throttle
 
@@ -352,17 +369,21 @@ class NetworkPolicy:
             )
         if len(images) == 0:
             empty = np.zeros(0, dtype=np.float32)
+            self.last_nonfinite = np.zeros(0, dtype=bool)
+            self.last_disagreement = empty.copy()
             return empty, (empty.copy() if self.speed_head else None)
         alone = [self._predict(images[index : index + 1]) for index in range(len(images))]
         self.last_nonfinite = np.concatenate([frame[2] for frame in alone])
+        self.last_disagreement = np.concatenate([frame[3] for frame in alone])
         steering = np.concatenate([frame[0] for frame in alone])
         if not self.speed_head:
             return steering, None
         return steering, np.concatenate([frame[1] for frame in alone])
 
     def _predict(self, images: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """(steering, learned speed or None, which frames' steering was NaN or infinite)."""
+                 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+        """(steering, learned speed or None, which frames' steering was NaN or infinite, the
+        mirror images' disagreement on the steering: 0 without mirror averaging)."""
         # Frames go in as the model takes them: uint8 for ours (Keras and ONNX alike; a float
         # copy for ONNX Runtime would be rounded back: 7 ms per 8 frames), float32 for a model
         # with a float input. ``forward`` is predict_on_batch, or its checked trace.
@@ -375,21 +396,24 @@ class NetworkPolicy:
         if steering.shape[1] != 1:
             raise ValueError(f"model predicts {steering.shape[1]} values per image, expected 1")
         steering = steering[:, 0].astype(np.float32)
+        disagreement = np.zeros(len(images), dtype=np.float32)
         if self.mirror_average:
+            disagreement = mirrored_gap(steering, sign=-1.0)
             steering = mirrored_mean(steering, sign=-1.0)
         # A NaN prediction steers straight rather than poisoning the controls; it is counted.
         nonfinite = ~np.isfinite(steering)
         self.nan_predictions += int(np.count_nonzero(nonfinite))
         steering = np.clip(np.nan_to_num(steering, nan=0.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+        disagreement = np.nan_to_num(disagreement, nan=0.0, posinf=0.0)
         if not self.speed_head:
-            return steering, None, nonfinite
+            return steering, None, nonfinite, disagreement
         speed = np.asarray(outputs[1]).reshape(len(frames)).astype(np.float32)
         if self.mirror_average:
             speed = mirrored_mean(speed, sign=1.0)
         # A NaN speed means "no opinion": the set speed (the cap) applies.
         speed = np.nan_to_num(speed, nan=1.0, posinf=1.0, neginf=0.0)
         return (steering, np.clip(speed, 0.0, 1.0) * np.float32(TARGET_SPEED_SCALE_MPH),
-                nonfinite)
+                nonfinite, disagreement)
 
 
 def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
@@ -398,6 +422,15 @@ def mirrored_mean(values: np.ndarray, sign: float) -> np.ndarray:
     the target speed (a bend is as sharp either way round)."""
     half = len(values) // 2
     return ((values[:half] + np.float32(sign) * values[half:]) * np.float32(0.5)).astype(
+        np.float32)
+
+
+def mirrored_gap(values: np.ndarray, sign: float) -> np.ndarray:
+    """``|values[:N] - sign * values[N:]| / 2`` for predictions on N frames followed by their N
+    mirror images: how far each frame's prediction and its mirror image's are from their
+    :func:`mirrored_mean` (0 where the two views agree)."""
+    half = len(values) // 2
+    return (np.abs(values[:half] - np.float32(sign) * values[half:]) * np.float32(0.5)).astype(
         np.float32)
 
 
@@ -424,6 +457,8 @@ def load_policy(
     notes = read_notes(path)
     settings = settings_in(notes, path) or DrivingSettings()
     options = {**settings.options(), **{k: v for k, v in kwargs.items() if v is not None}}
+    if kwargs.get("caution"):  # asked for, not the file's own
+        check_caution_needs_mirror(options["caution"], options["mirror_average"])
     if portable is not None:
         from clonedrive.network.traced import TracedModel
 

@@ -76,7 +76,8 @@ class PolicyDriver:
             controller = self.controllers[car]
             controller.set_speed_mph = self.policy.target_speed_mph(
                 float(steer), set_speed_mph=self.set_speeds_mph[car],
-                learned_speed_mph=None if learned is None else float(learned[index]))
+                learned_speed_mph=None if learned is None else float(learned[index]),
+                disagreement=float(self.policy.last_disagreement[index]))
             throttle = controller.update(obs.speed_mph)
             decisions.append(Decision(controls=Controls(steering=float(steer), throttle=throttle)))
         return decisions

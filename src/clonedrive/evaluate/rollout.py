@@ -42,7 +42,7 @@ from clonedrive.episode.runner import Episode, Runner, Step
 from clonedrive.evaluate.config import EvalConfig, RunSpec, run_specs
 from clonedrive.evaluate.reference import against_expert
 from clonedrive.evaluate.results import totals
-from clonedrive.network.driving_settings import full_speed_text
+from clonedrive.network.driving_settings import caution_text, full_speed_text
 from clonedrive.world.vehicle import MPH_TO_MPS
 
 if TYPE_CHECKING:
@@ -125,6 +125,8 @@ def _report_header(policy: NetworkPolicy, first: EvalConfig, model_path: str | N
         "mirror_average": policy.mirror_average,
         "speed_scale": policy.speed_scale,
         "full_speed_at": policy.full_speed_at,
+        "caution": policy.caution,
+        "caution_from": policy.caution_from,
         "speed_control": f"PI (kp {SPEED_KP}, ki {SPEED_KI})"
                          + (_learned_speed_text(policy) if speed_head else "")
                          + (", target speed reduced with |steering|" if slow_in_curves
@@ -140,6 +142,8 @@ def _learned_speed_text(policy: NetworkPolicy) -> str:
     scaled = f" times {policy.speed_scale:g}" if policy.speed_scale != 1.0 else ""
     if policy.full_speed_at != 1.0:
         scaled += f", {full_speed_text(policy.full_speed_at)}"
+    if policy.caution:
+        scaled += f", {caution_text(policy.caution, policy.caution_from)}"
     return f", target speed learned (speed head){scaled}, capped by the set speed"
 
 

@@ -58,6 +58,14 @@ class DrivingSettings:
     #: above this speed [mph] the wheel gets (this / speed) of the predicted steering, so a
     #: prediction turns the car no faster than it would at this speed (0: off, as drive.py)
     steering_scale_from_mph: float = 0.0
+    #: slow where the network is unsure of its steering: the target speed is divided by
+    #: ``1 + caution * max(0, disagreement - caution_from)``, the disagreement being half the
+    #: gap between a frame's steering prediction and its mirror image's (steering units);
+    #: without ``mirror_average`` there is nothing to compare and it does nothing (0: off)
+    caution: float = 0.0
+    #: the disagreement [steering units] below which ``caution`` does not slow: what a
+    #: network's two views differ by where it knows the road (a lopsided scene's bias)
+    caution_from: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("slow_in_curves", "mirror_average"):
@@ -68,6 +76,8 @@ class DrivingSettings:
         check_speed_scale(self.speed_scale)
         check_full_speed_at(self.full_speed_at)
         check_steering_scale_from(self.steering_scale_from_mph)
+        check_caution(self.caution)
+        check_caution_from(self.caution_from)
 
     def options(self) -> dict:
         """These settings as NetworkPolicy's keyword arguments."""
@@ -91,6 +101,8 @@ class DrivingSettings:
             parts.append(f"learned speed x{self.speed_scale:g}")
         if self.full_speed_at != 1.0:
             parts.append(full_speed_text(self.full_speed_at))
+        if self.caution:
+            parts.append(caution_text(self.caution, self.caution_from))
         return ", ".join(parts) or "steering straight to the wheel (as drive.py)"
 
     @classmethod
@@ -150,6 +162,43 @@ def check_full_speed_at(value: object) -> float:
     (:data:`STRETCH_FROM`, 1]."""
     return _finite_number(value, lambda number: STRETCH_FROM < number <= 1.0,
                           f"full_speed_at must be a number above {STRETCH_FROM:g} and at most 1")
+
+
+#: The largest ``caution``: at it a disagreement of 0.01 (a quarter of a degree of wheel)
+#: already halves the target speed.
+MAX_CAUTION = 100.0
+
+
+def check_caution(value: object) -> float:
+    """``value`` as ``caution``; ``ValueError`` unless a number in [0, :data:`MAX_CAUTION`]."""
+    return _finite_number(value, lambda number: 0 <= number <= MAX_CAUTION,
+                          f"caution must be a number in [0, {MAX_CAUTION:g}]")
+
+
+#: The largest ``caution_from`` [steering units]: a disagreement of 0.1 is 2.5 deg of wheel.
+MAX_CAUTION_FROM = 0.1
+
+
+def check_caution_from(value: object) -> float:
+    """``value`` as ``caution_from``; ``ValueError`` unless a number in
+    [0, :data:`MAX_CAUTION_FROM`]."""
+    return _finite_number(value, lambda number: 0 <= number <= MAX_CAUTION_FROM,
+                          f"caution_from must be a number in [0, {MAX_CAUTION_FROM:g}] "
+                          "(steering units)")
+
+
+def check_caution_needs_mirror(caution: float, mirror_average: bool) -> None:
+    """``ValueError`` if ``caution`` is asked for without ``mirror_average``, which it reads
+    (a model file's own caution is left to do nothing when mirror averaging is turned off)."""
+    if caution and not mirror_average:
+        raise ValueError("caution needs mirror averaging: the disagreement it slows for is "
+                         "between a frame's prediction and its mirror image's")
+
+
+def caution_text(caution: float, caution_from: float) -> str:
+    """How eval.json and :meth:`DrivingSettings.describe` name the ``caution`` setting."""
+    return (f"slower where a frame and its mirror image disagree by more than "
+            f"{caution_from:g} (caution {caution:g})")
 
 
 def read_notes(path: str | os.PathLike) -> dict:

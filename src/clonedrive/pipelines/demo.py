@@ -9,7 +9,9 @@
    model file carries the recipe's driving settings and its name and version;
 3. evaluates in closed loop (``runs/demo/eval/``) the recipe's groups of runs, driving the
    model with its own settings, with videos for the built-in tracks;
-4. writes ``report.md`` / ``report.html``.
+4. where the recipe has a ``[bench]`` table, benches the model on those splits of a built-in
+   suite (``runs/demo/bench/<splits>/bench.json``): the hard tracks, not only the demo's own;
+5. writes ``report.md`` / ``report.html`` (the bench beside the repository's leaderboard).
 
 The recipe file is copied to ``runs/demo/recipe.toml`` and the training data's recipe (with
 absolute paths) to ``runs/demo/train/recipe.toml``. Each stage writes its folder;
@@ -102,6 +104,22 @@ def demo_plan(config: DemoConfig, recipe: RecipeFile | None = None):
     return recipe.recordings, train, groups
 
 
+def bench_plan(config: DemoConfig, recipe: RecipeFile, model_path: Path):
+    """The :class:`~clonedrive.bench.run.BenchConfig` of the recipe's ``[bench]`` for the model
+    at ``model_path`` (None without one, and for ``--quick``). ``SuiteError`` now, before any
+    work, when the suite does not exist or lacks a split."""
+    from clonedrive.bench.run import BenchConfig
+    from clonedrive.bench.suite import load_suite
+
+    if recipe.bench is None or config.quick:
+        return None
+    bench = BenchConfig(models=(f"{recipe.name}={model_path}",), splits=recipe.bench.splits,
+                        workers=config.workers,
+                        **({"suite": recipe.bench.suite} if recipe.bench.suite else {}))
+    load_suite(bench.suite).episodes(bench.splits)  # SuiteError naming an unknown split
+    return bench
+
+
 def _record_stage(recordings, data_dir: Path, seed: int, progress: bool,
                   workers: int | None = None) -> list[dict]:
     """Record what is not recorded yet, the recordings spread over worker processes (each
@@ -187,6 +205,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     save_config(config, out / "config.json")
     write_text_atomic(out / "recipe.toml", recipe.text)
     recordings, stages, groups = demo_plan(config, recipe)
+    benched = bench_plan(config, recipe, out / "train" / "model.keras")
     summary: dict = {"config": config.__dict__, "recipe": recipe.identity(), "stages": {}}
     started = time.perf_counter()
 
@@ -213,6 +232,12 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
     t0 = time.perf_counter()
     report = _evaluate_stage(out, groups, progress)
     stage("evaluate", time.perf_counter() - t0, totals=report["totals"])
+
+    if benched is not None:
+        t0 = time.perf_counter()
+        bench_report = _bench_stage(out, benched, progress)
+        stage("bench", time.perf_counter() - t0, splits=list(benched.splits),
+              runs=sum(len(model["runs"]) for model in bench_report["models"].values()))
 
     t0 = time.perf_counter()
     written = write_report(out, progress=progress)
@@ -257,6 +282,20 @@ def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
     report = evaluate(policy, groups, out / "eval", progress=progress,
                       model_path=str(model_path))
     _say(progress, format_table(report))
+    return report
+
+
+def _bench_stage(out: Path, config, progress: bool) -> dict:
+    """Bench the trained model on the recipe's splits into ``bench/<splits>/``."""
+    from clonedrive.bench.leaderboard import tables
+    from clonedrive.bench.run import bench
+
+    folder = out / "bench" / "+".join(config.splits)
+    _say(progress, f"[bench] suite {config.suite}: {', '.join(config.splits)}, driven as "
+                   "the model file says")
+    report = bench(config, folder, progress=progress)
+    head, rows, _, _ = tables(report)
+    _say(progress, "\n".join("  ".join(f"{cell}" for cell in row) for row in [head, *rows]))
     return report
 
 

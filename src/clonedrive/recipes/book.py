@@ -39,6 +39,10 @@ Layout (every table but ``[recipe]`` and ``[[recording]]`` is optional)::
     tracks = ["lake"]
     speeds_mph = [15, 30]
 
+    [bench]                  # clonedrive demo also benches the model on these splits
+    suite = "v4"             # a built-in suite (bench's default when left out)
+    splits = ["dev"]
+
     [measured]               # figures measured once with this recipe, for comparisons
     date = "2026-12-04"
 
@@ -59,14 +63,14 @@ from clonedrive.data.recipe import SETTING_KEYS, Recipe, recipe_from_table, reje
 from clonedrive.network.driving_settings import DrivingSettings
 
 #: The recipes that ship with clonedrive (``<name>.toml`` in this package).
-BUILT_IN = ("agile", "best", "writeup")
+BUILT_IN = ("best", "writeup")
 #: What ``clonedrive demo`` and ``clonedrive train`` use when given no recipe.
 DEFAULT_RECIPE = "best"
 #: Recipe files larger than this are refused (they are a few kilobytes).
 MAX_RECIPE_BYTES = 1_000_000
 
 _TOP_KEYS = ("recipe", "defaults", "recording", "train", "finetune", "drive", "evaluate",
-             "measured")
+             "bench", "measured")
 _IDENTITY_KEYS = ("name", "version", "summary", "compare_with")
 
 
@@ -91,6 +95,15 @@ _RECORD_KEYS = tuple(item.name for item in dataclasses.fields(RecordSpec))
 
 
 @dataclass(frozen=True)
+class DemoBench:
+    """A recipe's ``[bench]``: the splits of a built-in suite ``clonedrive demo`` benches its
+    model on, after the evaluation, so its report shows the model where the road is hard."""
+
+    splits: tuple[str, ...]
+    suite: str | None = None  #: a built-in suite's name (None: bench's default suite)
+
+
+@dataclass(frozen=True)
 class RecipeFile:
     """A whole recipe as read from its file (see the module doc)."""
 
@@ -107,6 +120,7 @@ class RecipeFile:
     finetune: tuple[dict, ...] = ()
     driving: DrivingSettings = DrivingSettings()
     evaluation: tuple[dict, ...] = ()  #: EvalConfig fields per group
+    bench: DemoBench | None = None  #: the benchmark splits the demo drives the model on
     measured: dict = field(default_factory=dict)
     summary: str = ""
     compare_with: str | None = None  #: a recipe whose ``measured`` figures reports show beside
@@ -225,7 +239,7 @@ def parse_recipe_file(text: str, *, source: str, base_dir: str | os.PathLike) ->
         name=name.strip(), version=version, source=source, text=text,
         recordings=recordings, data_table=data_table, base_dir=Path(base_dir).absolute(),
         train=_table(data, "train", source), finetune=_finetune(data, source),
-        evaluation=_evaluation(data, source),
+        evaluation=_evaluation(data, source), bench=_bench(data, source),
         driving=DrivingSettings.from_dict(_table(data, "drive", source), f"{source}: [drive]"),
         measured=_table(data, "measured", source), summary=str(identity.get("summary", "")),
         compare_with=identity.get("compare_with"))
@@ -302,6 +316,23 @@ def _evaluation(data: dict, source: str) -> tuple[dict, ...]:
         config_from_dict(EvalConfig, values, source=f"{source}: [[evaluate]] #{number}")
         checked.append(values)
     return tuple(checked)
+
+
+def _bench(data: dict, source: str) -> DemoBench | None:
+    """The ``[bench]`` table (None when the recipe has none); whether its suite has those
+    splits is checked where the demo plans its stages (the suite is a layer above)."""
+    if "bench" not in data:
+        return None
+    table = _table(data, "bench", source)
+    reject_unknown(table, ("suite", "splits"), source, "[bench]")
+    suite, splits = table.get("suite"), table.get("splits")
+    if suite is not None and (not isinstance(suite, str) or not suite):
+        raise ValueError(f"{source}: [bench] suite = {suite!r}; expected a suite's name")
+    if not isinstance(splits, list) or not splits \
+            or not all(isinstance(split, str) and split for split in splits):
+        raise ValueError(f"{source}: [bench] splits = {splits!r}; expected a list of split "
+                         "names")
+    return DemoBench(splits=tuple(splits), suite=suite)
 
 
 def _floats(value):

@@ -11,7 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from clonedrive.base.paths import safe_stem
+from clonedrive.bench.board import shipped_board
 from clonedrive.bench.leaderboard import tables
+from clonedrive.report import formatting as fmt
 from clonedrive.report.context import (
     OPTIONAL_SECTION_TITLES,
     ReportContext,
@@ -51,6 +53,44 @@ def build(ctx: ReportContext) -> list[Section]:
     return sections
 
 
+#: The columns of the table that sets a run's bench beside the board's methods.
+BOARD_HEAD = ("method", "split", "success %", "driving score", "lap-time ratio",
+              "smoothness ratio")
+
+
+def _beside_the_board(report: dict, board: dict) -> list:
+    """A paragraph and a table: this run's models and the repository leaderboard's methods on
+    the splits this run drove (nothing when the board is of another suite or lacks them)."""
+    suite = (report.get("suite") or {}).get("id")
+    splits = [split for split in report.get("split_names", [])
+              if any(split in method for method in (board.get("methods") or {}).values())]
+    if not splits or board.get("suite") != suite:
+        return []
+    rows = []
+    for split in splits:
+        for entry, model in (report.get("models") or {}).items():
+            figures = (model.get("splits") or {}).get(split)
+            if figures:
+                rows.append((f"**{model.get('label', entry)}** (this run)", split,
+                             *_figures(figures)))
+        for label, method in board["methods"].items():
+            if split in method:
+                count = method[split].get("models")
+                rows.append((f"{label} ({count} models)" if count else label, split,
+                             *_figures(method[split])))
+    return [Paragraph(f"The same split{'s' if len(splits) > 1 else ''} of suite `{suite}` on "
+                      "the repository's leaderboard (each method's mean over its models; "
+                      f"lap-time ratios over clean laps only, {fmt.MISSING} where none was "
+                      "clean):"),
+            Table(BOARD_HEAD, tuple(rows), align="ll" + "r" * (len(BOARD_HEAD) - 2))]
+
+
+def _figures(figures: dict) -> tuple[str, ...]:
+    return (fmt.num(figures.get("success_pct"), 1), fmt.num(figures.get("driving_score")),
+            fmt.num(figures.get("lap_time_ratio"), 3),
+            fmt.num(figures.get("smoothness_ratio")))
+
+
 def _subsection(ctx: ReportContext, path: Path) -> Section:
     name = path.parent.relative_to(ctx.parts.run_dir).as_posix()
     name = "bench" if name == "." else name
@@ -72,6 +112,7 @@ def _subsection(ctx: ReportContext, path: Path) -> Section:
     if model_rows:
         blocks.append(Table(tuple(model_head), tuple(tuple(row) for row in model_rows),
                             align="ll" + "r" * (len(model_head) - 2)))
+    blocks += _beside_the_board(report, shipped_board())
     for plot, caption in PLOTS:
         source = ctx.run_file(path.parent, plot)
         if source is not None:

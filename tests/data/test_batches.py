@@ -136,8 +136,9 @@ def _resident_pages(path: Path) -> int:
 
 def test_a_memmap_cache_lets_go_of_its_pages_and_keeps_its_frames(tmp_path: Path,
                                                                    monkeypatch) -> None:
-    """Past MAPPED_BYTES_LIMIT of frames read or written, the process drops the memmap's pages
-    (its resident memory does not grow with the cache); the frames read back the same."""
+    """Past MAPPED_BYTES_LIMIT of frames written, the process drops the memmap's pages
+    (its resident memory does not grow with the cache); reads map nothing and give the same
+    frames."""
     from clonedrive.data import batches
 
     paths = sorted((LAKE / "IMG").glob("*.jpg"))[:12]

@@ -67,6 +67,14 @@ def tables(report: dict) -> tuple[list[str], list[list[str]], list[str], list[li
     return method_head, method_rows, model_head, model_rows
 
 
+def methods_text(report: dict) -> str:
+    """The leaderboard's method table as aligned plain text, for a terminal."""
+    head, rows, _, _ = tables(report)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    return "\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True))
+                     for row in [head, *rows])
+
+
 def _md(text: object) -> str:
     """``text`` as literal Markdown on one line: suite files and model labels are the user's
     text, and a ``|``, ``*``, ``<`` or newline in them must not restructure the page."""

@@ -121,12 +121,9 @@ def run(args) -> int:
 
 
 def _print_methods(report: dict) -> None:
-    from clonedrive.bench.leaderboard import tables
+    from clonedrive.bench.leaderboard import methods_text
 
-    head, rows, _, _ = tables(report)
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    for row in [head, *rows]:
-        print("  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)))
+    print(methods_text(report))
 
 
 def _merge(args) -> int:

@@ -36,16 +36,18 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
     network and the controls (:class:`clonedrive.network.driving_settings.DrivingSettings`).
     Each left out takes the setting stored in the model file (drive.py's, all off, for a file
     without them)."""
-    parser.add_argument("--steering-filter", type=_steering_filter_s, default=None, metavar="S",
+    parser.add_argument("--steering-filter", type=_setting("check_steering_filter_s"),
+                        default=None, metavar="S",
                         help="low-pass the predicted steering with this time constant [s] "
                              "(0.1 = the expert's hand; 0 = off, as drive.py; default: the "
                              "model's own setting)")
-    parser.add_argument("--steering-hold", type=_steering_hold, default=None, metavar="H",
+    parser.add_argument("--steering-hold", type=_setting("check_steering_hold"),
+                        default=None, metavar="H",
                         help="hold the wheel while the predicted steering stays within H of it "
                              "(steering units, -1..1; removes jitter smaller than H without a "
                              "delay; 0 = off, as drive.py; default: the model's own setting)")
-    parser.add_argument("--steering-scale-from", type=_steering_scale_from, default=None,
-                        metavar="MPH",
+    parser.add_argument("--steering-scale-from", type=_setting("check_steering_scale_from"),
+                        default=None, metavar="MPH",
                         help="above MPH, multiply the predicted steering by MPH / the car's "
                              "speed, so that a prediction turns the car no faster than at MPH "
                              "(a calmer wheel, a wider line through fast bends; 0 = off, as "
@@ -64,73 +66,41 @@ def add_steering_arguments(parser: argparse.ArgumentParser, *, speed: bool = Tru
                                  "|steering| grows, down to 40%% of the set speed (default: "
                                  "the model's own setting; off for a model without one, as "
                                  "drive.py)")
-        parser.add_argument("--speed-scale", type=_speed_scale, default=None, metavar="K",
+        parser.add_argument("--speed-scale", type=_setting("check_speed_scale"),
+                            default=None, metavar="K",
                             help="multiply a speed head's target speed by K before the set "
                                  "speed caps it (1 = as learned; no effect without a speed "
                                  "head; default: the model's own setting)")
-        parser.add_argument("--full-speed-at", type=_full_speed_at, default=None, metavar="F",
+        parser.add_argument("--full-speed-at", type=_setting("check_full_speed_at"),
+                            default=None, metavar="F",
                             help="drive a speed head's target at or above F times the set "
                                  f"speed at the set speed, and stretch its targets from "
                                  f"{STRETCH_FROM:g} times the set speed up to match (1 = as "
                                  "learned; default: the model's own setting)")
-        parser.add_argument("--caution", type=_caution, default=None, metavar="C",
+        parser.add_argument("--caution", type=_setting("check_caution"), default=None, metavar="C",
                             help="slow where the network is unsure: divide the target speed "
                                  "by 1 + C x the disagreement between a frame's steering and "
                                  "its mirror image's (needs mirror averaging; 0 = off; "
                                  "default: the model's own setting)")
-        parser.add_argument("--caution-from", type=_caution_from, default=None, metavar="D",
+        parser.add_argument("--caution-from", type=_setting("check_caution_from"),
+                            default=None, metavar="D",
                             help="the disagreement (steering units) below which --caution "
                                  "does not slow: what the two views differ by where the "
                                  "network knows the road (default: the model's own setting)")
 
 
-def _steering_filter_s(text: str) -> float:
-    """``--steering-filter``'s value, refused by argparse (exit 2) unless a number >= 0."""
-    from clonedrive.network.driving_settings import check_steering_filter_s
+def _setting(check_name: str):
+    """An argparse ``type`` for a driving setting's flag: the text as a float, refused by
+    argparse (exit 2) with the message of ``network.driving_settings.<check_name>``, the one
+    check that the setting's value passes everywhere (imported when a flag is given, so that
+    ``--help`` stays fast)."""
 
-    return _checked_float(text, check_steering_filter_s)
+    def checked(text: str) -> float:
+        from clonedrive.network import driving_settings
 
+        return _checked_float(text, getattr(driving_settings, check_name))
 
-def _steering_hold(text: str) -> float:
-    """``--steering-hold``'s value, refused by argparse (exit 2) outside [0, 1)."""
-    from clonedrive.network.driving_settings import check_steering_hold
-
-    return _checked_float(text, check_steering_hold)
-
-
-def _steering_scale_from(text: str) -> float:
-    """``--steering-scale-from``'s value, refused by argparse (exit 2) unless 0 or in range."""
-    from clonedrive.network.driving_settings import check_steering_scale_from
-
-    return _checked_float(text, check_steering_scale_from)
-
-
-def _speed_scale(text: str) -> float:
-    """``--speed-scale``'s value, refused by argparse (exit 2) outside the settings' range."""
-    from clonedrive.network.driving_settings import check_speed_scale
-
-    return _checked_float(text, check_speed_scale)
-
-
-def _full_speed_at(text: str) -> float:
-    """``--full-speed-at``'s value, refused by argparse (exit 2) outside (STRETCH_FROM, 1]."""
-    from clonedrive.network.driving_settings import check_full_speed_at
-
-    return _checked_float(text, check_full_speed_at)
-
-
-def _caution(text: str) -> float:
-    """``--caution``'s value, refused by argparse (exit 2) outside the settings' range."""
-    from clonedrive.network.driving_settings import check_caution
-
-    return _checked_float(text, check_caution)
-
-
-def _caution_from(text: str) -> float:
-    """``--caution-from``'s value, refused by argparse (exit 2) outside the settings' range."""
-    from clonedrive.network.driving_settings import check_caution_from
-
-    return _checked_float(text, check_caution_from)
+    return checked
 
 
 def _checked_float(text: str, check) -> float:

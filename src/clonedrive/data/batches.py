@@ -110,7 +110,7 @@ class ImageCache:
         else:
             self.frames = np.empty(shape, dtype=np.uint8)
         self.frame_bytes = frame_bytes
-        self.mapped_bytes = 0  #: bytes of a memmap read or written since its last release
+        self.mapped_bytes = 0  #: bytes of a memmap written since its last release
         self.filled = np.zeros(len(self.paths), dtype=bool)
         self.failed: dict[int, ImageDecodeError] = {}  # index -> why it cannot be used
         self.decode_count = 0
@@ -138,10 +138,10 @@ class ImageCache:
         with self._lock:
             self.decode_count += 1
             self.filled[index] = True
-        self._touched(1)
+        self._wrote(1)
         return True
 
-    def _touched(self, frames: int) -> None:
+    def _wrote(self, frames: int) -> None:
         """Count ``frames`` written; past :data:`MAPPED_BYTES_LIMIT`, release a memmap's pages
         from this process (``MADV_DONTNEED``: a shared file mapping keeps its data in the page
         cache, written pages included)."""

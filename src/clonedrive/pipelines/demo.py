@@ -287,15 +287,14 @@ def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
 
 def _bench_stage(out: Path, config, progress: bool) -> dict:
     """Bench the trained model on the recipe's splits into ``bench/<splits>/``."""
-    from clonedrive.bench.leaderboard import tables
+    from clonedrive.bench.leaderboard import methods_text
     from clonedrive.bench.run import bench
 
     folder = out / "bench" / "+".join(config.splits)
     _say(progress, f"[bench] suite {config.suite}: {', '.join(config.splits)}, driven as "
                    "the model file says")
     report = bench(config, folder, progress=progress)
-    head, rows, _, _ = tables(report)
-    _say(progress, "\n".join("  ".join(f"{cell}" for cell in row) for row in [head, *rows]))
+    _say(progress, methods_text(report))
     return report
 
 

@@ -101,3 +101,16 @@ def test_a_row_made_today_drives_as_the_boards_models_of_its_method(board, name)
     assert pinned != with_defaults(boards[name]) and driven == with_defaults(boards[name])
     # Today's default recipe trains and drives otherwise: its models are another method.
     assert load_recipe_file("best").version > recipe.version
+
+
+def test_the_best_v7_row_trains_with_the_kept_v7_recipe_and_drives_as_the_board(board) -> None:
+    table, rows = board.load_rows()
+    demos = [shlex.split(step) for step in board.row_steps(table, rows, "best-v7", 1, "r")
+             if step.startswith("clonedrive demo ")]
+    made_by = {words[words.index("--recipe") + 1] for words in demos}
+    assert made_by == {"benchmarks/leaderboard/best-v7.toml"}
+    recipe = load_recipe_file(ROOT / made_by.pop())
+    assert recipe.label() == "best v7"
+    boards = json.loads((ROOT / "docs" / "leaderboard" / "bench.json").read_text())["driving"]
+    assert recipe.driving.options() == with_defaults(boards["best-v7"])
+    assert load_recipe_file("best").version == recipe.version + 1

@@ -31,7 +31,7 @@ def test_train_without_a_recipe_uses_best_and_stores_how_to_drive(best_run: Path
     assert notes["recipe"]["name"] == "best"
     assert stored_settings(best_run / "model.keras") == DrivingSettings(
         mirror_average=True, steering_hold=0.004, steering_filter_s=0.05, full_speed_at=0.95,
-        caution=40.0, caution_from=0.012)
+        caution=40.0, caution_from=0.015)
     assert stored_settings(best_run / "last.keras") == stored_settings(best_run / "model.keras")
 
 
@@ -56,7 +56,7 @@ def test_evaluate_with_no_flags_drives_as_the_model_file_says(best_run: Path, tm
     assert header["mirror_average"] is True and header["steering_hold"] == 0.004
     assert header["steering_filter_s"] == 0.05
     assert header["speed_head"] is True and header["slow_in_curves"] is False
-    assert header["recipe"] == {"name": "best", "version": 7}
+    assert header["recipe"] == {"name": "best", "version": 8}
     assert header["steering_scale_from_mph"] == 0.0
     assert header["speed_scale"] == 1.0
     assert header["full_speed_at"] == 0.95
@@ -124,7 +124,7 @@ def test_recipe_best_trains_three_stages_each_from_the_one_before(best_run: Path
     assert [config["consistency"] for config in (base, middle, final)] == [0, 60, 60]
     assert [config["epochs"] for config in (base, middle, final)] == [1, 2, 1]
     assert [config["batch_size"] for config in (base, middle, final)] == [64, 64, 64]
-    assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 7}
+    assert read_notes(best_run / "model.keras")["recipe"] == {"name": "best", "version": 8}
 
 
 def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
@@ -157,3 +157,24 @@ def test_a_finetune_reuses_the_first_stages_images_and_trains_the_same_model(
     apart = load_model(tmp_path / "apart" / "model.keras").get_weights()
     assert len(shared) == len(apart)
     assert all(np.array_equal(a, b) for a, b in zip(shared, apart, strict=True))
+
+
+def test_a_recipe_s_driving_settings_do_not_change_what_it_trains(best_run: Path,
+                                                                  tmp_path: Path):
+    """A recipe that differs only in [drive] trains the same weights to the bit, so a model's
+    driving settings can be compared on one trained network."""
+    from importlib import resources
+
+    from clonedrive.network.model_file import load_model
+
+    text = resources.files("clonedrive.recipes").joinpath("best.toml").read_text("utf-8")
+    assert "caution_from = 0.015" in text
+    copy = tmp_path / "other.toml"
+    copy.write_text(text.replace("caution_from = 0.015", "caution_from = 0.03"))
+    out = tmp_path / "other"
+    assert main(["train", str(LAKE), "--recipe", str(copy), "--epochs", "1", "--batch-size",
+                 "64", "--out", str(out), "--json"]) == 0
+    assert stored_settings(out / "model.keras").caution_from == 0.03
+    ours, theirs = (load_model(run / "model.keras") for run in (best_run, out))
+    for a, b in zip(ours.get_weights(), theirs.get_weights(), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

@@ -171,3 +171,51 @@ def test_a_network_gives_the_same_output_on_row_windowed_batches() -> None:
         part, _ = augment_batch(frames, steering, np.random.default_rng(4), rows=rows)
         np.testing.assert_array_equal(model.predict_on_batch(part.astype(np.float32)),
                                       model.predict_on_batch(full.astype(np.float32)))
+
+
+LOOKS = AugmentConfig(looks_probability=0.5)
+
+
+def test_looks_restyle_some_frames_and_leave_the_rest_and_the_labels_as_without() -> None:
+    frames = _frames(32, seed=4)
+    steering = np.linspace(-0.4, 0.4, 32).astype(np.float32)
+    plain, plain_labels = augment_batch(frames, steering, np.random.default_rng(6))
+    styled, labels = augment_batch(frames, steering, np.random.default_rng(6), LOOKS)
+    np.testing.assert_array_equal(labels, plain_labels)
+    changed = np.array([not np.array_equal(a, b) for a, b in zip(plain, styled, strict=True)])
+    assert 5 <= changed.sum() <= 27  # about half restyled, the others exactly as without looks
+    again, _ = augment_batch(frames, steering, np.random.default_rng(6), LOOKS)
+    np.testing.assert_array_equal(again, styled)
+
+
+def test_looks_in_a_row_window_are_the_whole_frame_s_rows() -> None:
+    frames = _frames(12, seed=9)
+    steering = np.zeros(12, np.float32)
+    config = AugmentConfig(looks_probability=1.0, blur_probability=1.0)
+    full, _ = augment_batch(frames, steering, np.random.default_rng(1), config)
+    part, _ = augment_batch(frames, steering, np.random.default_rng(1), config, rows=(60, 135))
+    np.testing.assert_array_equal(part[:, 60:135], full[:, 60:135])
+    assert not part[:, :60].any() and not part[:, 135:].any()
+
+
+def test_haze_covers_the_far_road_and_fades_to_nothing_at_the_bottom() -> None:
+    black = np.zeros((4, 160, 320, 3), np.uint8)
+    config = AugmentConfig(
+        looks_probability=1.0, tint_max=0.0, contrast_min=1.0, haze_max=0.9, blur_probability=0.0,
+        noise_max=0.0, flip_probability=0.0, shift_max_px=0, vertical_shift_max_px=0,
+        brightness_min=1.0, brightness_max=1.0, shadow_probability=0.0)
+    hazy, _ = augment_batch(black, np.zeros(4, np.float32), np.random.default_rng(3), config)
+    rows = hazy.mean(axis=(2, 3))  # (frame, row)
+    assert np.all(rows[:, 159] == 0)  # the bottom row: no haze
+    assert np.all(rows[:, 30] >= rows[:, 100]) and np.all(rows[:, 100] >= rows[:, 150])
+    assert rows[:, 30].max() > 60  # some frame is hazed towards a light grey at the top
+
+
+def test_looks_give_a_consistency_pair_the_same_look() -> None:
+    frames = _frames(4, seed=2)
+    pairs = np.concatenate([frames, frames])  # each frame beside an identical partner
+    config = AugmentConfig(looks_probability=1.0, noise_max=0.0)
+    out, _ = augment_batch(pairs, np.zeros(8, np.float32), np.random.default_rng(5), config,
+                           pairs=True)
+    np.testing.assert_array_equal(out[:4], out[4:])
+    assert not np.array_equal(out[:4], frames)

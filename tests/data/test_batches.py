@@ -205,15 +205,17 @@ def test_a_cache_of_the_rows_training_reads_gives_the_same_batches(tmp_path: Pat
     assert (tmp_path / "c.u8").stat().st_size == cropped.nbytes
     for cache in (whole, cropped):
         cache.fill()
-    options = {"batch_size": 16, "shuffle": True, "augment": AugmentConfig(), "seed": 4,
-               "rows": visible}
-    expected = DrivingBatches(samples, whole, **options)
-    got = DrivingBatches(samples, cropped, **options)
-    for index in range(len(expected)):
-        (images_a, labels_a), (images_b, labels_b) = expected[index], got[index]
-        np.testing.assert_array_equal(images_a[:, visible[0]:visible[1]],
-                                      images_b[:, visible[0]:visible[1]])
-        np.testing.assert_array_equal(labels_a, labels_b)
+    # Looks blur: the rows its kernel reaches beyond a shifted window are cached too.
+    for augment in (AugmentConfig(), AugmentConfig(looks_probability=0.5, blur_probability=1.0)):
+        options = {"batch_size": 16, "shuffle": True, "augment": augment, "seed": 4,
+                   "rows": visible}
+        expected = DrivingBatches(samples, whole, **options)
+        got = DrivingBatches(samples, cropped, **options)
+        for index in range(len(expected)):
+            (images_a, labels_a), (images_b, labels_b) = expected[index], got[index]
+            np.testing.assert_array_equal(images_a[:, visible[0]:visible[1]],
+                                          images_b[:, visible[0]:visible[1]])
+            np.testing.assert_array_equal(labels_a, labels_b)
     frame = cropped.get(np.array([0]))[0]
     assert frame.shape == (160, 320, 3) and not frame[: rows[0]].any()
     cropped.close()

@@ -66,7 +66,7 @@ def test_a_copied_and_edited_recipe_is_used(tmp_path):
     path.write_text(text, encoding="utf-8")
     assert is_whole_recipe(path)
     recipe = load_recipe_file(path)
-    assert recipe.label() == "mine v7"  # the copy keeps best's version
+    assert recipe.label() == "mine v8"  # the copy keeps best's version
     assert recipe.train_config().epochs == 2
     assert recipe.driving.steering_hold == 0.008
     _, (train, *_), _ = demo_plan(DemoConfig(recipe=str(path), epochs=3))
@@ -93,7 +93,7 @@ def test_recordings_are_found_by_name_in_a_data_folder(tmp_path):
     ("best", ("[train]", "[train]\nwarp = 9"), "warp"),
     ("best", ("steering_hold = 0.004", "steering_hold = 2.0"), "steering_hold"),
     ("best", ('name = "best"', 'name = ""'), "needs a name"),
-    ("best", ("version = 7", "version = 0"), "version"),
+    ("best", ("version = 8", "version = 0"), "version"),
     ("best", ("laps = 3", "laps = 0"), "laps"),
     ("best", ('style = "center"', 'style = "center"\ncolour = "red"'), "colour"),
     ("best", ("correction = 0.054", "correction = 7"), "correction"),

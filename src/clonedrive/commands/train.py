@@ -91,6 +91,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"({r} {d.shift_steering_per_px:g}); a shift of the picture "
                              "looks like a heading error, so S sets the heading gain the "
                              "network learns")
+    parser.add_argument("--augment-looks", type=float, default=given, metavar="P",
+                        help=f"share of training frames restyled: a colour cast, lower "
+                             f"contrast, haze, blur, noise ({r} {d.augment_looks:g})")
     parser.add_argument("--early-stopping", dest="early_stopping_patience",
                         type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")

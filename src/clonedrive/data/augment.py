@@ -14,6 +14,12 @@ Every function takes a batch of uint8 RGB frames ``(N, H, W, 3)`` and steering l
 - **vertical shift**: up to a few pixels up or down (the road's pitch changes), label kept.
 - **brightness**: all three channels scaled by one factor per image (same hue).
 - **shadow**: one side of a random slanted line across the frame is darkened.
+- **looks** (off unless ``looks_probability`` > 0; :func:`restyle`): a colour cast (a gain per
+  channel), lower contrast, haze (the frame blended towards a light grey, most at its top,
+  the far road, fading downwards), a slight blur and pixel noise. Generic camera and weather
+  effects drawn in image space, none of them a benchmark's held-out condition family (those
+  are rendered in the scene, sim/conditions.py), so that a look the network has not seen is
+  less new to it.
 
 The label of a shifted-and-flipped sample is ``-(steering + dx * steering_per_px)``: the
 shift is applied in the unflipped frame, then the flip mirrors picture and label together.
@@ -21,12 +27,27 @@ shift is applied in the unflipped frame, then the flip mirrors picture and label
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 #: Steering change per pixel of horizontal shift ([-1, 1] units per pixel).
 STEERING_PER_PX = 0.004
+#: Where :func:`restyle`'s haze is whole: this fraction of the frame's height from its top,
+#: about where the road meets the sky in the Udacity camera; below it, haze fades downwards.
+HAZE_HORIZON = 0.4
+#: Rows a :func:`restyle` blur reaches beyond a pixel (its largest kernel is 5 x 5).
+BLUR_MARGIN = 2
+#: The range of greys (0-255) :func:`restyle`'s haze is drawn from, and how far each channel
+#: strays from it (a bluish, reddish or greenish haze).
+HAZE_GREYS = (140.0, 235.0)
+HAZE_TINT = 12.0
+#: The grey :func:`restyle`'s contrast is lowered towards (0-255).
+CONTRAST_PIVOT = 128.0
+#: The seed of :func:`restyle`'s fixed noise field.
+NOISE_FIELD_SEED = 20261207
 
 
 @dataclass(frozen=True)
@@ -42,6 +63,13 @@ class AugmentConfig:
     shadow_probability: float = 0.5
     shadow_darkness_min: float = 0.5  # factor applied inside a shadow, uniform in [min, max]
     shadow_darkness_max: float = 0.8
+    looks_probability: float = 0.0  # share of frames restyled by :func:`restyle` (0: none)
+    tint_max: float = 0.15  # each channel's gain drawn in [1 - max, 1 + max]
+    contrast_min: float = 0.6  # contrast factor drawn in [min, 1]
+    haze_max: float = 0.85  # haze at the horizon and above drawn in [0, max]
+    haze_power_max: float = 4.0  # how fast haze fades downwards: power drawn in [1, max]
+    blur_probability: float = 0.3  # of a restyled frame: a 3x3 or 5x5 Gaussian blur
+    noise_max: float = 6.0  # of a restyled frame, half the time: pixel noise std in [0, max]
 
 
 def flip_horizontal(images: np.ndarray, steering: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -188,9 +216,123 @@ def augment_batch(
         flip, dx, dy, brightness, shadow, top_x, bottom_x, darkness, right_side = (
             np.concatenate([drawn, drawn]) for drawn in (
                 flip, dx, dy, brightness, shadow, top_x, bottom_x, darkness, right_side))
+    restyling = config.looks_probability > 0.0
+    # Restyling blurs: the rows its kernel reaches beyond the window are computed too.
+    computed = _widened(rows, images.shape[1], BLUR_MARGIN) if restyling else rows
     shifted, labels = shift_and_flip(
         images, steering, dx, dy, flip, steering_per_px=config.steering_per_px, mirror=mirror,
-        rows=rows,
+        rows=computed,
     )
-    return shade(shifted, brightness, shadow, top_x, bottom_x, darkness, right_side,
-                 rows=rows), labels
+    shaded = shade(shifted, brightness, shadow, top_x, bottom_x, darkness, right_side,
+                   rows=computed)
+    if restyling:  # drawn after the rest: the other draws stay as they were without it
+        looks = draw_looks(rng, count, config)
+        if pairs:
+            looks = LookDraws(*(np.concatenate([drawn, drawn]) for drawn in looks))
+        restyle(shaded, looks, rng, rows=rows)
+        _clear_outside(shaded, rows, computed)
+    return shaded, labels
+
+
+def _widened(rows: tuple[int, int] | None, height: int, margin: int
+             ) -> tuple[int, int] | None:
+    if rows is None:
+        return None
+    first, end = _row_window(rows, height)
+    return max(0, first - margin), min(height, end + margin)
+
+
+def _clear_outside(images: np.ndarray, rows: tuple[int, int] | None,
+                   computed: tuple[int, int] | None) -> None:
+    """Zero the rows computed beyond the window, as a windowed batch leaves them."""
+    if rows is None:
+        return
+    images[:, computed[0]:rows[0]] = 0
+    images[:, rows[1]:computed[1]] = 0
+
+
+class LookDraws(NamedTuple):
+    """Per frame, what :func:`restyle` does to it (see :class:`AugmentConfig`)."""
+
+    chosen: np.ndarray  #: (N,) bool: restyled at all
+    tint: np.ndarray  #: (N, 3) gain per channel
+    contrast: np.ndarray  #: (N,)
+    haze: np.ndarray  #: (N,) haze at the top row
+    haze_power: np.ndarray  #: (N,)
+    haze_colour: np.ndarray  #: (N, 3)
+    blur: np.ndarray  #: (N,) kernel size: 0 (none), 3 or 5
+    noise: np.ndarray  #: (N,) pixel noise std
+
+
+def draw_looks(rng: np.random.Generator, count: int, config: AugmentConfig) -> LookDraws:
+    """Draw :func:`restyle`'s settings for ``count`` frames, in a fixed order."""
+    chosen = rng.random(count) < config.looks_probability
+    tint = rng.uniform(1.0 - config.tint_max, 1.0 + config.tint_max, size=(count, 3))
+    contrast = rng.uniform(config.contrast_min, 1.0, size=count)
+    haze = rng.uniform(0.0, config.haze_max, size=count)
+    haze_power = rng.uniform(1.0, config.haze_power_max, size=count)
+    grey = rng.uniform(*HAZE_GREYS, size=(count, 1))
+    haze_colour = grey + rng.uniform(-HAZE_TINT, HAZE_TINT, size=(count, 3))
+    blur = np.where(rng.random(count) < config.blur_probability,
+                    rng.choice([3, 2 * BLUR_MARGIN + 1], size=count), 0)
+    noise = np.where(rng.random(count) < 0.5, rng.uniform(0.0, config.noise_max, size=count), 0.0)
+    return LookDraws(chosen, tint.astype(np.float32), contrast.astype(np.float32),
+                     haze.astype(np.float32), haze_power.astype(np.float32),
+                     haze_colour.astype(np.float32), blur, noise.astype(np.float32))
+
+
+def restyle(images: np.ndarray, looks: LookDraws, rng: np.random.Generator,
+            rows: tuple[int, int] | None = None) -> None:
+    """Restyle the chosen frames of ``images`` in place (module doc): blur, then the cast and
+    the contrast (about mid-grey), then haze towards its colour, whole above the horizon
+    (:data:`HAZE_HORIZON`) and falling as ``(1 - depth) ** power`` to none at the bottom row,
+    then noise (read from a fixed field at offsets drawn from ``rng``). Every step depends only
+    on the pixel's place in the whole frame, so ``rows`` computes those rows exactly as
+    without it."""
+    import cv2
+
+    height, width = images.shape[1:3]
+    first, end = _row_window(rows, height)
+    horizon = HAZE_HORIZON * height
+    depth = np.clip((np.arange(first, end, dtype=np.float32) - horizon) / (height - horizon),
+                    0.0, 1.0)
+    field = _noise_field(height, width)
+    offsets = rng.integers(0, [height, width], size=(len(images), 2))
+    for index in np.flatnonzero(looks.chosen):
+        # Cast, contrast and haze are one affine map per row and channel: gain, then offset.
+        alpha = looks.haze[index] * (1.0 - depth) ** looks.haze_power[index]  # (rows,)
+        keep = (1.0 - alpha)[:, None]
+        gain = keep * (looks.tint[index] * looks.contrast[index])  # (rows, 3)
+        offset = keep * ((1.0 - looks.contrast[index]) * CONTRAST_PIVOT) + alpha[:, None] * (
+            looks.haze_colour[index])
+        pixels = _blurred(images[index], int(looks.blur[index]), first, end)
+        pixels *= gain[:, None, :]
+        pixels += offset[:, None, :]
+        if looks.noise[index] > 0.0:
+            down, across = offsets[index]
+            pixels += looks.noise[index] * field[down + first:down + end, across:across + width]
+        np.maximum(pixels, 0.0, out=pixels)
+        images[index, first:end] = cv2.convertScaleAbs(pixels)  # rounded, saturated at 255
+
+
+def _blurred(frame: np.ndarray, size: int, first: int, end: int) -> np.ndarray:
+    """Rows ``[first, end)`` of ``frame`` as float32, Gaussian-blurred with a ``size`` kernel
+    (0: not), as blurring the whole frame would make them: the rows the kernel reaches
+    beyond the window are blurred with it, and a border is reflected only where the frame
+    itself ends."""
+    import cv2
+
+    if not size:
+        return frame[first:end].astype(np.float32)
+    margin = size // 2
+    top, bottom = max(0, first - margin), min(frame.shape[0], end + margin)
+    blurred = cv2.GaussianBlur(frame[top:bottom], (size, size), 0)
+    return blurred[first - top:end - top].astype(np.float32)
+
+
+@functools.cache
+def _noise_field(height: int, width: int) -> np.ndarray:
+    """A fixed field of unit Gaussian noise, twice a frame each way: a frame's noise is a
+    window of it at a drawn offset, which costs no generation per frame."""
+    field = np.random.default_rng(NOISE_FIELD_SEED).standard_normal((2 * height, 2 * width, 3))
+    return field.astype(np.float32)

@@ -189,10 +189,11 @@ def discard_cache(out: Path) -> None:
 
 def cached_rows(config: DatasetConfig) -> tuple[int, int]:
     """The frame rows training reads: the network's crop, widened by augmentation's largest
-    vertical shift (a shifted picture's visible rows come from up to that far away)."""
-    from clonedrive.data.augment import AugmentConfig
+    vertical shift (a shifted picture's visible rows come from up to that far away) and the
+    rows its blur reaches beyond them."""
+    from clonedrive.data.augment import BLUR_MARGIN, AugmentConfig
 
-    margin = AugmentConfig().vertical_shift_max_px if config.augment else 0
+    margin = AugmentConfig().vertical_shift_max_px + BLUR_MARGIN if config.augment else 0
     return (max(0, config.crop_top_px - margin),
             min(IMAGE_HEIGHT, IMAGE_HEIGHT - CROP_BOTTOM_PX + margin))
 

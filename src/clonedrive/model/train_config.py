@@ -42,6 +42,7 @@ class TrainConfig:
     block_s: float = DEFAULT_BLOCK_S  # block length of the "blocks" split, seconds
     augment: bool = True  # training-only augmentation (see data.augment)
     shift_steering_per_px: float = STEERING_PER_PX  # label change per pixel of augment's shift
+    augment_looks: float = 0.0  # share of training frames restyled: cast, haze, blur, noise
     seed: int = 0
     early_stopping_patience: int | None = None  # stop after this many epochs without a best
     dropout: float = 0.0  # 0 = off
@@ -74,6 +75,8 @@ class TrainConfig:
         if not 0.0 <= self.shift_steering_per_px <= MAX_SHIFT_STEERING_PER_PX:  # also NaN
             raise ValueError(f"shift_steering_per_px must be in [0, "
                              f"{MAX_SHIFT_STEERING_PER_PX:g}], got {self.shift_steering_per_px}")
+        if not 0.0 <= self.augment_looks <= 1.0:  # also NaN
+            raise ValueError(f"augment_looks must be in [0, 1], got {self.augment_looks}")
         if not 0.0 <= self.dropout < 1.0:  # also NaN
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:

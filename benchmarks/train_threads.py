@@ -11,8 +11,10 @@ augmented, only the rows the crop keeps), the same batches each time, in three s
 - ``cv2_1_workers_2``: OpenCV on one thread, two PyDataset worker threads (the next batch is
   made while the network trains on this one).
 
-Each set-up trains a fresh network from the same initial weights on the same batches, so the
-final weights must be equal to the bit in all three (printed; the benchmark exits 1 if not).
+Each set-up trains a fresh network from the same initial weights on the same batches. OpenCV's
+thread count cannot change a pixel, so ``cv2_1``'s final weights must equal today's to the bit
+(the benchmark exits 1 if not); whether ``cv2_1_workers_2``'s do is printed as a finding (on
+2026-12-07 they did not: Keras's threaded batch queue trains another model).
 Rounds are interleaved and the best of each set-up counts (other work only slows a round);
 the ratios are against ``today`` in the same run. ``--looks P`` restyles that share of frames
 (``train --augment-looks``), as a recipe with it would. Ends with one JSON line.
@@ -118,7 +120,7 @@ def main() -> None:
         "speedup": {name: round(value, 3) for name, value in speedups.items()},
         "same_weights": same,
     }))
-    if not all(same.values()):
+    if not same["cv2_1"]:
         sys.exit(1)
 
 

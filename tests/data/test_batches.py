@@ -190,23 +190,26 @@ def test_batches_shapes_flips_weights_and_order(tmp_path: Path) -> None:
 def test_a_cache_of_the_rows_training_reads_gives_the_same_batches(tmp_path: Path) -> None:
     """A cache keeping only the rows a cropping network and its augmentation read is less than
     half the size, and the batches' visible rows are the same to the bit."""
+    from clonedrive.data.augment import BLUR_MARGIN
     from clonedrive.data.dataset import cached_rows
     from clonedrive.model.train_config import TrainConfig
 
     samples = expand(default_recipe_for([LAKE]))
-    config = TrainConfig(crop_top_px=60)
-    rows = cached_rows(config.dataset_config())
     visible = (60, 160 - 25)
-    assert rows[0] <= visible[0] - 6 and rows[1] >= visible[1] + 6
     whole = ImageCache(samples.unique_paths)
-    cropped = ImageCache(samples.unique_paths, rows=rows, memmap_path=tmp_path / "c.u8",
-                         memory_limit_bytes=0)
-    assert cropped.nbytes < 0.6 * whole.nbytes
-    assert (tmp_path / "c.u8").stat().st_size == cropped.nbytes
-    for cache in (whole, cropped):
-        cache.fill()
+    whole.fill()
+    plain = cached_rows(TrainConfig(crop_top_px=60).dataset_config())
+    assert plain[0] <= visible[0] - 6 and plain[1] >= visible[1] + 6
     # Looks blur: the rows its kernel reaches beyond a shifted window are cached too.
-    for augment in (AugmentConfig(), AugmentConfig(looks_probability=0.5, blur_probability=1.0)):
+    looks = cached_rows(TrainConfig(crop_top_px=60, augment_looks=0.5).dataset_config())
+    assert looks == (plain[0] - BLUR_MARGIN, plain[1] + BLUR_MARGIN)
+    for rows, augment in ((plain, AugmentConfig()),
+                          (looks, AugmentConfig(looks_probability=0.5, blur_probability=1.0))):
+        cropped = ImageCache(samples.unique_paths, rows=rows, memmap_path=tmp_path / "c.u8",
+                             memory_limit_bytes=0)
+        assert cropped.nbytes < 0.6 * whole.nbytes
+        assert (tmp_path / "c.u8").stat().st_size == cropped.nbytes
+        cropped.fill()
         options = {"batch_size": 16, "shuffle": True, "augment": augment, "seed": 4,
                    "rows": visible}
         expected = DrivingBatches(samples, whole, **options)
@@ -216,7 +219,7 @@ def test_a_cache_of_the_rows_training_reads_gives_the_same_batches(tmp_path: Pat
             np.testing.assert_array_equal(images_a[:, visible[0]:visible[1]],
                                           images_b[:, visible[0]:visible[1]])
             np.testing.assert_array_equal(labels_a, labels_b)
-    frame = cropped.get(np.array([0]))[0]
-    assert frame.shape == (160, 320, 3) and not frame[: rows[0]].any()
-    cropped.close()
-    assert not (tmp_path / "c.u8").exists()
+        frame = cropped.get(np.array([0]))[0]
+        assert frame.shape == (160, 320, 3) and not frame[: rows[0]].any()
+        cropped.close()
+        assert not (tmp_path / "c.u8").exists()

@@ -63,6 +63,7 @@ class DatasetConfig:
     val_fraction: float
     block_s: float  # block length of the "blocks" split, seconds
     augment: bool  # widens the cached rows by augmentation's vertical shift
+    augment_looks: float  # > 0 (frames restyled) widens them by its blur's reach too
     crop_top_px: int  # rows the network cuts from the top
     speed_head: bool  # speed labels are reported and slowing samples kept back
     speed_headroom: float  # labels at the top speed rise up to this multiple of it
@@ -189,11 +190,14 @@ def discard_cache(out: Path) -> None:
 
 def cached_rows(config: DatasetConfig) -> tuple[int, int]:
     """The frame rows training reads: the network's crop, widened by augmentation's largest
-    vertical shift (a shifted picture's visible rows come from up to that far away) and the
-    rows its blur reaches beyond them."""
+    vertical shift (a shifted picture's visible rows come from up to that far away) and, where
+    frames are restyled, the rows its blur reaches beyond them."""
     from clonedrive.data.augment import BLUR_MARGIN, AugmentConfig
 
-    margin = AugmentConfig().vertical_shift_max_px + BLUR_MARGIN if config.augment else 0
+    margin = 0
+    if config.augment:
+        margin = AugmentConfig().vertical_shift_max_px + (
+            BLUR_MARGIN if config.augment_looks > 0 else 0)
     return (max(0, config.crop_top_px - margin),
             min(IMAGE_HEIGHT, IMAGE_HEIGHT - CROP_BOTTOM_PX + margin))
 

@@ -4,6 +4,10 @@ driving settings into every model file, and ``evaluate`` drives the model with t
 from __future__ import annotations
 
 import json
+import os
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +16,7 @@ import pytest
 from clonedrive.cli import main
 from clonedrive.network.driving_settings import DrivingSettings, read_notes, stored_settings
 
+REPOSITORY = Path(__file__).resolve().parents[2]
 LAKE = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "lake_posix_mixed_columns"
 
 
@@ -178,3 +183,24 @@ def test_a_recipe_s_driving_settings_do_not_change_what_it_trains(best_run: Path
     ours, theirs = (load_model(run / "model.keras") for run in (best_run, out))
     for a, b in zip(ours.get_weights(), theirs.get_weights(), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def _udacity_page_example() -> str:
+    """The plain-Python loading example of docs/udacity.md ("Our models outside clonedrive")."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "udacity.md").read_text("utf-8")
+    section = text[text.index("**Our models outside clonedrive.**"):]
+    return re.search(r"^```python\n(.*?)^```", section, flags=re.S | re.M).group(1)
+
+
+def test_the_model_loads_in_plain_keras_as_the_docs_show(best_run: Path, tmp_path: Path):
+    """The default recipe's model (fine-tuned with the ConsistentMSE loss) loads with
+    safe_mode in a process that never imports clonedrive, and answers a frame."""
+    code = _udacity_page_example().replace("runs/x/model.keras",
+                                           str(best_run / "model.keras"))
+    code += "\nimport sys\nassert 'clonedrive' not in sys.modules, 'clonedrive was imported'\n"
+    env = {**os.environ, "KERAS_BACKEND": "torch", "PYTHONPATH": ""}
+    done = subprocess.run([sys.executable, "-I", "-c", code], cwd=REPOSITORY, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert re.fullmatch(r"steering [+-]\d\.\d{3} \(wheel / 25 deg\), target speed \d\.\d\d of "
+                        r"top speed\n", done.stdout), done.stdout

@@ -1,5 +1,6 @@
-"""What a training run writes as it goes: per epoch ``last.keras``, ``model.keras`` (a new
-best), ``history.csv``, ``loss.png`` and ``state.json``, each atomically and in that order, and
+"""What a training run writes as it goes: per epoch ``last.keras`` (with its training state,
+for resuming), ``model.keras`` (a new best, the network alone: see :func:`portable_copy`),
+``history.csv``, ``loss.png`` and ``state.json``, each atomically and in that order, and
 at its end the legacy ``model.h5``.
 
 :func:`run_recorder_class` gives the Keras callback that writes the per-epoch files and decides
@@ -84,7 +85,8 @@ def run_recorder_class():
             self.history.append(row)
             save_model_atomic(self.model, self.out / "last.keras", self.notes)
             if not row["val_loss"] >= previous_best:  # first epoch, a new best, or NaN history
-                save_model_atomic(self.model, self.out / "model.keras", self.notes)
+                save_model_atomic(portable_copy(self.model), self.out / "model.keras",
+                                  self.notes)
             write_history(self.out / HISTORY_NAME, self.history)
             plot_loss(self.history, self.out / "loss.png",
                       consistency=bool(self.config.consistency))
@@ -102,6 +104,19 @@ def run_recorder_class():
                 )
 
     return RunRecorder
+
+
+def portable_copy(model):
+    """``model`` without its training state (loss, optimizer, metrics): the network and its
+    weights, which plain Keras loads with ``safe_mode=True`` and no clonedrive class. A model
+    saved compiled with a fine-tune's ``ConsistentMSE`` loss does not load outside clonedrive;
+    ``last.keras`` keeps that state, for resuming."""
+    from clonedrive.base.keras_backend import import_keras
+
+    keras = import_keras()
+    copy = keras.Model.from_config(model.get_config())  # the config holds no compile state
+    copy.set_weights(model.get_weights())
+    return copy
 
 
 def save_model_atomic(model, path: Path, notes: dict | None = None) -> None:

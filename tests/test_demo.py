@@ -6,9 +6,11 @@ from clonedrive.cli import main
 
 
 @pytest.mark.slow
-def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys):
-    out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--out", str(out), "--no-video"]) == 0
+def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo", "--quick", "--no-video"]) == 0
+    out = tmp_path / "runs" / "demo-quick"  # its own folder: the full demo's stays empty
+    assert sorted(path.name for path in (tmp_path / "runs").iterdir()) == ["demo-quick"]
     summary = json.loads((out / "demo.json").read_text())
     assert list(summary["stages"]) == ["record", "train", "evaluate", "report"]
     assert summary["stages"]["record"]["rows"] == 300  # 20 s at 15 Hz
@@ -22,7 +24,15 @@ def test_quick_demo_runs_every_stage_from_an_empty_folder(tmp_path, capsys):
     html = (out / "report.html").read_text()
     assert "Closed-loop" in html or "closed-loop" in html
     assert (out / "report.md").is_file()
-    assert "demo finished" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "demo finished" in printed
+    # A quick check reads as one: no lap count (its evaluation stops before a lap), and no
+    # comparison with a recipe's full figures.
+    assert "quick check: the model drove" in printed and "all: 0/1 laps" not in printed
+    report_md = (out / "report.md").read_text()
+    assert "Quick check passed: every stage ran" in report_md
+    assert "laps clean" not in report_md and "measured 20" not in report_md
+    assert "(mean over runs)" not in report_md  # no ratios to the expert in its headline
     assert summary["recipe"]["name"] == "best"
     assert report["recipe"]["name"] == "best" and report["mirror_average"] is True
     assert not report["slow_in_curves"]

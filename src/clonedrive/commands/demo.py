@@ -22,16 +22,18 @@ EXAMPLES = (
     "clonedrive demo                      # the whole job into runs/demo/, recipe 'best'",
     "clonedrive demo --recipe writeup --out runs/writeup   # the seed write-up's system",
     "clonedrive demo --recipe my.toml     # a copy of a recipe file, edited",
-    "clonedrive demo --quick --out runs/q  # every stage, small, in about a minute",
+    "clonedrive demo --quick              # every stage, small, in a minute: runs/demo-quick/",
 )
 
 
 def add_arguments(parser) -> None:
-    from clonedrive.pipelines.demo import DEFAULT_RUN_DIR, DEMO_MODELS, DemoConfig
+    from clonedrive.pipelines.demo import DEFAULT_RUN_DIR, DEMO_MODELS, QUICK_RUN_DIR, DemoConfig
     from clonedrive.recipes.book import recipe_choices_text
 
     defaults = DemoConfig()
-    parser.add_argument("--out", default=DEFAULT_RUN_DIR, help="run folder")
+    parser.add_argument("--out", default=None,
+                        help=f"run folder (default {DEFAULT_RUN_DIR}, with --quick "
+                             f"{QUICK_RUN_DIR})")
     parser.add_argument("--recipe", default=defaults.recipe, metavar="NAME|FILE",
                         help=f"a built-in recipe ({recipe_choices_text()}) or a recipe file: "
                              f"what to record, how to train and drive (default "
@@ -56,7 +58,10 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from clonedrive.commands.output_claim import claim
-    from clonedrive.pipelines.demo import DemoConfig, run_demo
+    from clonedrive.pipelines.demo import DEFAULT_RUN_DIR, QUICK_RUN_DIR, DemoConfig, run_demo
+
+    if args.out is None:
+        args.out = QUICK_RUN_DIR if args.quick else DEFAULT_RUN_DIR
 
     try:
         config = DemoConfig(recipe=args.recipe, quick=args.quick, epochs=args.epochs,

@@ -30,9 +30,10 @@ def totals(results: list[dict]) -> dict:
     return totals
 
 
-def format_table(report: dict) -> str:
+def format_table(report: dict, *, with_totals: bool = True) -> str:
     """The printed results table; ``lap/exp`` and ``rate/exp``: lap time and steering rate over
-    the expert's on the same track and cap."""
+    the expert's on the same track and cap. Then (``with_totals``) the laps of all runs, and of
+    the built-in and unseen tracks apart where there are both."""
     head = (f"{'track':<10}{'mph':>5}{'laps':>7}{'interv.':>9}{'auton.%':>9}{'mean|CTE|':>10}"
             f"{'max|CTE|':>9}{'smooth':>8}{'speed':>7}{'dist m':>8}{'lap/exp':>8}{'rate/exp':>9}")
     lines = [head, "-" * len(head)]
@@ -51,10 +52,13 @@ def format_table(report: dict) -> str:
     for r in nan_runs:
         lines.append(f"warning: {r['track']} at {r['speed_mph']:g} mph: the model predicted NaN "
                      f"or infinite steering on {r['nan_predictions']} frame(s) (driven straight)")
-    for key, total in report["totals"].items():
+    shown = report["totals"] if with_totals else {}
+    if set(shown) != {"all", "builtin", "unseen"}:  # one group: its line repeats "all"
+        shown = {key: total for key, total in shown.items() if key == "all"}
+    for key, total in shown.items():
         lines.append(f"{key}: {total['laps_completed']}/{total['laps_target']} laps "
                      f"({total['laps_completed_pct']:.0f} %), {total['interventions']} "
-                     "interventions")
+                     f"intervention{'' if total['interventions'] == 1 else 's'}")
     return "\n".join(lines)
 
 

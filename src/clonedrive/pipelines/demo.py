@@ -33,6 +33,9 @@ from clonedrive.recipes.training import run_stages, stage_dirs, train_stages
 
 #: Where ``clonedrive demo`` writes its run by default.
 DEFAULT_RUN_DIR = "runs/demo"
+#: Where ``clonedrive demo --quick`` writes its run by default: its own folder, so the full demo
+#: run after it (the README's order) does not meet the quick run's smaller recordings.
+QUICK_RUN_DIR = "runs/demo-quick"
 #: Architectures the demo can train (model.architectures.MODEL_NAMES, fast first).
 DEMO_MODELS = ("fast", "seed", "pilotnet")
 #: --quick: the recipe's first recording, this long [s], trained this many epochs.
@@ -230,7 +233,7 @@ def run_demo(config: DemoConfig, out_dir: str | Path, *, progress: bool = True) 
           epochs=[config.epochs for config in stages])
 
     t0 = time.perf_counter()
-    report = _evaluate_stage(out, groups, progress)
+    report = _evaluate_stage(out, groups, progress, config.quick)
     stage("evaluate", time.perf_counter() - t0, totals=report["totals"])
 
     if benched is not None:
@@ -264,8 +267,9 @@ def _check_same_recipe(train_dir: Path, recipe: RecipeFile) -> None:
                     "the demo another --out, or remove that training folder")
 
 
-def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
-    """Drive the trained model, with its own settings, through every group of runs."""
+def _evaluate_stage(out: Path, groups, progress: bool, quick: bool = False) -> dict:
+    """Drive the trained model, with its own settings, through every group of runs (``quick``:
+    a short drive that checks the stage runs, and says so instead of counting laps)."""
     from clonedrive.drivers.policy import load_policy
     from clonedrive.evaluate.results import format_table
     from clonedrive.evaluate.rollout import evaluate
@@ -281,7 +285,11 @@ def _evaluate_stage(out: Path, groups, progress: bool) -> dict:
                    f"{policy.driving_settings().describe()}")
     report = evaluate(policy, groups, out / "eval", progress=progress,
                       model_path=str(model_path))
-    _say(progress, format_table(report))
+    _say(progress, format_table(report, with_totals=not quick))
+    if quick:
+        metres = sum(run["distance_m"] for run in report["runs"])
+        _say(progress, f"quick check: the model drove {metres:.0f} m (the quick evaluation "
+                       "stops before a lap: no lap counts; `clonedrive demo` measures driving)")
     return report
 
 

@@ -116,6 +116,11 @@ class ReportContext:
                         if train else None)
         self.eval = (read_json_or_none(parts.eval_dir / "eval.json", self.unreadable)
                      if parts.eval_dir else None)
+        demo = (read_json_or_none(parts.demo_json, self.unreadable)
+                if parts.demo_json else None)
+        demo_config = demo.get("config") if isinstance(demo, dict) else None
+        #: The run is ``clonedrive demo --quick``'s: every stage small, no measure of driving.
+        self.quick = isinstance(demo_config, dict) and demo_config.get("quick") is True
 
     def note(self, text: str) -> Note:
         """A one-line note in the report, also kept in :attr:`notes`."""

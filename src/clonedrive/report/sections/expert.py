@@ -80,7 +80,7 @@ def build(ctx: ReportContext) -> list[Section]:
         Bullets(tuple(_meaning(key, name, means[key], compared) for key, name in RATIOS))]
     shown = [f"{label} {fmt.num(means[key])}×" for key, label in HEADLINE
              if means[key] is not None]
-    if shown:
+    if shown and not ctx.quick:  # a quick check's 10 s from a standing start measure nothing
         ctx.headline(f"Against the expert (1.0 = the expert): {', '.join(shown)} "
                      "(mean over runs).")
     return [Section(title, blocks=blocks)]

@@ -204,3 +204,38 @@ def test_the_model_loads_in_plain_keras_as_the_docs_show(best_run: Path, tmp_pat
     assert done.returncode == 0, done.stderr[-2000:]
     assert re.fullmatch(r"steering [+-]\d\.\d{3} \(wheel / 25 deg\), target speed \d\.\d\d of "
                         r"top speed\n", done.stdout), done.stdout
+
+
+def test_stages_1_trains_the_first_stage_alone_and_the_plan_says_so(tmp_path: Path, capsys):
+    out = tmp_path / "one"
+    assert main(["train", str(LAKE), "--epochs", "1", "--stages", "1", "--batch-size", "64",
+                 "--no-h5", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    plan = printed[printed.index("[plan]"):].splitlines()[:2]
+    assert plan == ["[plan] 1 stage(s), 1 epoch(s) in all:",
+                    "  stage 1: fast, 1 epoch(s) from scratch, learning rate 0.001"]
+    assert not (out / "base").exists()
+    assert len((out / "history.csv").read_text().splitlines()) == 2  # header + one epoch
+
+
+def test_the_plan_of_best_shows_the_fine_tunes_epochs():
+    from clonedrive.commands.train import plan_text
+    from clonedrive.recipes.book import load_recipe_file
+    from clonedrive.recipes.training import train_stages
+
+    text = plan_text(train_stages(load_recipe_file("best"), epochs=1))
+    assert text.splitlines() == [
+        "[plan] 3 stage(s), 4 epoch(s) in all:",
+        "  stage 1: fast, 1 epoch(s) from scratch, learning rate 0.001",
+        "  stage 2: fast, 2 epoch(s) from the stage before, learning rate 0.0005, "
+        "consistency 60",
+        "  stage 3: fast, 1 epoch(s) from the stage before, learning rate 0.0005, "
+        "consistency 60"]
+
+
+@pytest.mark.parametrize("stages", ["0", "4"])
+def test_stages_beyond_the_recipe_are_refused(stages: str, tmp_path: Path, capsys):
+    assert main(["train", str(LAKE), "--stages", stages, "--out", str(tmp_path / "x")]) == 2
+    assert f"--stages {stages}: recipe best has 3 stage(s); give 1 to 3" in \
+        capsys.readouterr().err
+    assert not (tmp_path / "x").exists()

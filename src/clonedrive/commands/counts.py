@@ -37,6 +37,8 @@ MAX_PATIENCE = TRAIN_MAX["early_stopping_patience"]
 MAX_BATCH_SIZE = TRAIN_MAX["batch_size"]
 #: Threads that feed training batches.
 MAX_TRAIN_WORKERS = TRAIN_MAX["workers"]
+#: Training stages of a recipe that ``train --stages`` keeps (a recipe has a handful).
+MAX_STAGES = 100
 #: DAgger iterations (each records, trains and evaluates).
 MAX_ITERATIONS = 1_000
 #: Off-road events before a recording stops.

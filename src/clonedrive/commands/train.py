@@ -12,6 +12,7 @@ from clonedrive.commands.counts import (
     MAX_CROP_TOP_PX,
     MAX_EPOCHS,
     MAX_PATIENCE,
+    MAX_STAGES,
     MAX_TRAIN_WORKERS,
     count,
 )
@@ -37,13 +38,18 @@ DESCRIPTION = (
     "folder receives model.keras (best "
     "validation loss), last.keras (every epoch), model.h5, history.csv, loss.png, config.json, "
     "recipe.toml, dataset.json and steering_before/after.png. An interrupted run continues "
-    "with --resume --out FOLDER."
+    "with --resume --out FOLDER. A recipe may train in stages, each from the model of the one "
+    "before ('best': 3 epochs, then fine-tune stages of 2 and 1 epochs with the consistency "
+    "penalty): the options set the first stage, and the later stages take them too except the "
+    "settings their own tables set ('best': epochs, learning rate, consistency). --stages N "
+    "trains the first N stages only. The plan is printed before training starts."
 )
 #: Example command lines, shown at the end of ``clonedrive train --help``.
 EXAMPLES = (
     "clonedrive train data/middle data/weave --out runs/x      # recipe 'best'",
     "clonedrive train --recipe best --data runs/demo/data --out runs/y   # the demo's model",
     "clonedrive train data/middle --recipe writeup --epochs 3 --out runs/z",
+    "clonedrive train data/middle --epochs 1 --stages 1 --out runs/v   # one epoch, no fine-tune",
     "clonedrive train --recipe runs/demo/train/recipe.toml --out runs/w   # a data recipe",
 )
 
@@ -68,9 +74,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", default=given, choices=MODEL_CHOICES,
                         help=f"architecture ({r} {d.model})")
     parser.add_argument("--epochs", type=count(MAX_EPOCHS), default=given,
-                        help=f"total epochs ({r} {d.epochs})")
+                        help=f"epochs of the first stage ({r} {d.epochs}); a recipe's "
+                             "fine-tune stages add their own ('best': 3, then 2 + 1)")
     parser.add_argument("--lr", dest="learning_rate", type=float, default=given,
-                        help=f"Adam learning rate ({r} {d.learning_rate:g})")
+                        help=f"Adam learning rate of the first stage ({r} "
+                             f"{d.learning_rate:g}); a fine-tune stage that sets its own keeps it")
     parser.add_argument("--batch-size", type=count(MAX_BATCH_SIZE), default=given,
                         help=f"batch size ({r} {d.batch_size})")
     parser.add_argument("--split", default=given, choices=("random", "blocks", "recording"),
@@ -130,8 +138,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"train each sample beside its next frame (1/15 s later) and add W "
                              f"times the squared difference of their errors to the steering "
                              f"loss: less frame-to-frame noise in the predicted steering, a "
-                             f"steadier wheel ({r} {d.consistency:g}: off). Each step then "
-                             "takes twice the images (see model/consistency.py)")
+                             f"steadier wheel, in the first stage ({r} {d.consistency:g}: off; "
+                             "'best' sets it in its fine-tune stages). Each step then takes "
+                             "twice the images (see model/consistency.py)")
+    parser.add_argument("--stages", type=count(MAX_STAGES), default=None, metavar="N",
+                        help="train the recipe's first N stages only (default: all; 1: the "
+                             "first stage alone, no fine-tune)")
     parser.add_argument("--init-from", type=str, default=given, metavar="MODEL",
                         help="start from this model's weights (layers matched by name)")
     parser.add_argument("--no-h5", dest="export_h5", action="store_false", default=given,
@@ -168,6 +180,8 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError) as error:
         print(f"clonedrive train: {error}", file=sys.stderr)
         return 1
+    if not args.json:
+        print(plan_text(stages), flush=True)
     try:
         inputs = [*args.dirs, *([args.recipe] if _is_file(args.recipe) else [])]
         with claim_output("train", out, inputs=inputs):
@@ -189,14 +203,28 @@ def run(args: argparse.Namespace) -> int:
         "skipped_rows": result.dataset["skipped_rows"],
         "skipped_images": result.dataset["skipped_images"],
     }
+    summary["stages"] = len(stages)
     if args.json:
         print(json.dumps(summary))
     else:
+        stage = f" of stage {len(stages)}" if len(stages) > 1 else ""
         print(
-            f"best epoch {result.best_epoch} of {result.epochs_done}: val_loss "
+            f"best epoch {result.best_epoch} of {result.epochs_done}{stage}: val_loss "
             f"{result.best_val_loss:.5f} ({summary['split']} split) -> {result.model_path}"
         )
     return 0
+
+
+def plan_text(stages: list) -> str:
+    """What a training will run, before it starts: each stage's epochs and what it changes."""
+    lines = [f"[plan] {len(stages)} stage(s), {sum(c.epochs for c in stages)} epoch(s) in all:"]
+    for number, config in enumerate(stages, start=1):
+        start = "from scratch" if number == 1 and config.init_from is None else (
+            "from the stage before" if number > 1 else f"from {config.init_from}")
+        extra = f", consistency {config.consistency:g}" if config.consistency else ""
+        lines.append(f"  stage {number}: {config.model}, {config.epochs} epoch(s) {start}, "
+                     f"learning rate {config.learning_rate:g}{extra}")
+    return "\n".join(lines)
 
 
 def _train(stages: list, source, out: Path, args: argparse.Namespace, notes: dict | None):
@@ -256,6 +284,10 @@ def _plan(args: argparse.Namespace):
     from clonedrive.recipes.training import train_stages
 
     stages = _settings(lambda: train_stages(recipe, **_overrides(args, TrainConfig)))
+    if args.stages is not None and not 1 <= args.stages <= len(stages):
+        raise _BadOption(f"--stages {args.stages}: recipe {recipe.name} has {len(stages)} "
+                         f"stage(s); give 1 to {len(stages)}")
+    stages = stages[:args.stages or len(stages)]
     if args.dirs:
         if args.recipe and not whole:
             raise ValueError("give either a data recipe file or DIRs, not both")

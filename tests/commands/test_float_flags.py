@@ -23,6 +23,8 @@ FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "udacity" / "statio
     ("--shift-steering", "-0.001", "shift_steering_per_px must be in [0, 0.02], got -0.001"),
     ("--augment-looks", "nan", "augment_looks must be in [0, 1], got nan"),
     ("--augment-looks", "1.5", "augment_looks must be in [0, 1], got 1.5"),
+    ("--looks-saturation", "nan", "looks_saturation must be in [0, 1], got nan"),
+    ("--looks-saturation", "-0.5", "looks_saturation must be in [0, 1], got -0.5"),
 ])
 def test_train_refuses_what_cannot_train(tmp_path: Path, flag: str, value: str,
                                          named: str) -> None:

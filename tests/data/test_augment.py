@@ -219,3 +219,44 @@ def test_looks_give_a_consistency_pair_the_same_look() -> None:
                            pairs=True)
     np.testing.assert_array_equal(out[:4], out[4:])
     assert not np.array_equal(out[:4], frames)
+
+
+def test_looks_without_washed_colours_draw_as_before_they_existed() -> None:
+    """saturation_min = 1 draws nothing for it, so recipes without it (best v8) train on the
+    very batches they did before the setting existed (this digest was taken then)."""
+    import hashlib
+
+    frames = _frames(16, seed=11)
+    out, labels = augment_batch(frames, np.linspace(-0.3, 0.3, 16).astype(np.float32),
+                                np.random.default_rng(12), LOOKS, rows=(52, 142))
+    digest = hashlib.sha256(out.tobytes() + labels.tobytes()).hexdigest()[:16]
+    assert digest == "d3224f2df3fd038b"
+
+
+def test_desaturate_moves_each_pixel_towards_its_own_grey() -> None:
+    from clonedrive.data.augment import LUMA_WEIGHTS, _desaturate
+
+    pixels = _frames(1, seed=8)[0].astype(np.float32)
+    luma = pixels @ LUMA_WEIGHTS
+    grey = pixels.copy()
+    _desaturate(grey, 0.0)
+    np.testing.assert_allclose(grey, np.repeat(luma[..., None], 3, axis=2), atol=1e-3)
+    half = pixels.copy()
+    _desaturate(half, 0.5)
+    np.testing.assert_allclose(half, (pixels + grey) / 2, atol=1e-3)
+
+
+def test_washed_colours_only_ever_shrink_a_restyled_frame_s_colour_spread() -> None:
+    frames = _frames(16, seed=8)
+    config = AugmentConfig(looks_probability=1.0, saturation_min=0.0, tint_max=0.0,
+                           contrast_min=1.0, haze_max=0.0, blur_probability=0.0, noise_max=0.0,
+                           flip_probability=0.0, shift_max_px=0, vertical_shift_max_px=0,
+                           brightness_min=1.0, brightness_max=1.0, shadow_probability=0.0)
+    washed, _ = augment_batch(frames, np.zeros(16, np.float32), np.random.default_rng(2), config)
+
+    def spread(images):
+        return images.astype(int).max(axis=3) - images.astype(int).min(axis=3)
+
+    assert np.all(spread(washed) <= spread(frames) + 1)  # + rounding
+    shrunk = spread(washed).mean(axis=(1, 2)) / spread(frames).mean(axis=(1, 2))
+    assert shrunk.min() < 0.3 and shrunk.max() > 0.7  # saturations drawn across [0, 1]

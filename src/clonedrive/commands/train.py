@@ -102,6 +102,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--augment-looks", type=float, default=given, metavar="P",
                         help=f"share of training frames restyled: a colour cast, lower "
                              f"contrast, haze, blur, noise ({r} {d.augment_looks:g})")
+    parser.add_argument("--looks-saturation", type=float, default=given, metavar="S",
+                        help=f"a restyled frame's colour saturation is drawn in [S, 1]: 0 "
+                             f"allows grey frames ({r} {d.looks_saturation:g}: colours kept)")
     parser.add_argument("--early-stopping", dest="early_stopping_patience",
                         type=count(MAX_PATIENCE), default=given, metavar="PATIENCE",
                         help="stop after PATIENCE epochs without a better validation loss")

@@ -16,7 +16,8 @@ Every function takes a batch of uint8 RGB frames ``(N, H, W, 3)`` and steering l
 - **shadow**: one side of a random slanted line across the frame is darkened.
 - **looks** (off unless ``looks_probability`` > 0; :func:`restyle`): a colour cast (a gain per
   channel), lower contrast, haze (the frame blended towards a light grey, most at its top,
-  the far road, fading downwards), a slight blur and pixel noise. Generic camera and weather
+  the far road, fading downwards), a slight blur, pixel noise and (with ``saturation_min`` < 1)
+  colours washed towards grey. Generic camera and weather
   effects drawn in image space, none of them a benchmark's held-out condition family (those
   are rendered in the scene, sim/conditions.py), so that a look the network has not seen is
   less new to it.
@@ -70,6 +71,9 @@ class AugmentConfig:
     haze_power_max: float = 4.0  # how fast haze fades downwards: power drawn in [1, max]
     blur_probability: float = 0.3  # of a restyled frame: a 3x3 or 5x5 Gaussian blur
     noise_max: float = 6.0  # of a restyled frame, half the time: pixel noise std in [0, max]
+    # Of a restyled frame: colour saturation drawn in [min, 1] (0: grey). 1: off, and nothing is
+    # drawn for it, so the other looks are drawn as without it.
+    saturation_min: float = 1.0
 
 
 def flip_horizontal(images: np.ndarray, steering: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -262,6 +266,19 @@ class LookDraws(NamedTuple):
     haze_colour: np.ndarray  #: (N, 3)
     blur: np.ndarray  #: (N,) kernel size: 0 (none), 3 or 5
     noise: np.ndarray  #: (N,) pixel noise std
+    saturation: np.ndarray  #: (N,) colour saturation, 1 = unchanged
+
+
+#: Each channel's share of a pixel's grey (ITU-R BT.601 luma), for :func:`_desaturate`.
+LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
+
+def _desaturate(pixels: np.ndarray, saturation: float) -> None:
+    """Move float RGB ``pixels`` (rows, columns, 3) in place towards their grey: ``grey +
+    saturation * (pixel - grey)``."""
+    grey = pixels @ LUMA_WEIGHTS
+    pixels *= saturation
+    pixels += ((1.0 - saturation) * grey)[..., None]
 
 
 def draw_looks(rng: np.random.Generator, count: int, config: AugmentConfig) -> LookDraws:
@@ -276,14 +293,18 @@ def draw_looks(rng: np.random.Generator, count: int, config: AugmentConfig) -> L
     blur = np.where(rng.random(count) < config.blur_probability,
                     rng.choice([3, 2 * BLUR_MARGIN + 1], size=count), 0)
     noise = np.where(rng.random(count) < 0.5, rng.uniform(0.0, config.noise_max, size=count), 0.0)
+    saturation = (rng.uniform(config.saturation_min, 1.0, size=count)
+                  if config.saturation_min < 1.0 else np.ones(count))
     return LookDraws(chosen, tint.astype(np.float32), contrast.astype(np.float32),
                      haze.astype(np.float32), haze_power.astype(np.float32),
-                     haze_colour.astype(np.float32), blur, noise.astype(np.float32))
+                     haze_colour.astype(np.float32), blur, noise.astype(np.float32),
+                     saturation.astype(np.float32))
 
 
 def restyle(images: np.ndarray, looks: LookDraws, rng: np.random.Generator,
             rows: tuple[int, int] | None = None) -> None:
-    """Restyle the chosen frames of ``images`` in place (module doc): blur, then the cast and
+    """Restyle the chosen frames of ``images`` in place (module doc): blur, then the colours
+    towards grey (``looks.saturation``), then the cast and
     the contrast (about mid-grey), then haze towards its colour, whole above the horizon
     (:data:`HAZE_HORIZON`) and falling as ``(1 - depth) ** power`` to none at the bottom row,
     then noise (read from a fixed field at offsets drawn from ``rng``). Every step depends only
@@ -306,6 +327,8 @@ def restyle(images: np.ndarray, looks: LookDraws, rng: np.random.Generator,
         offset = keep * ((1.0 - looks.contrast[index]) * CONTRAST_PIVOT) + alpha[:, None] * (
             looks.haze_colour[index])
         pixels = _blurred(images[index], int(looks.blur[index]), first, end)
+        if looks.saturation[index] < 1.0:
+            _desaturate(pixels, float(looks.saturation[index]))
         pixels *= gain[:, None, :]
         pixels += offset[:, None, :]
         if looks.noise[index] > 0.0:

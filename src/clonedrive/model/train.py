@@ -202,7 +202,8 @@ def _batches(config: TrainConfig, data: Dataset, model, epochs_done: int):
     train_batches = DrivingBatches(
         data.train, data.cache, batch_size=config.batch_size, shuffle=True,
         augment=AugmentConfig(steering_per_px=config.shift_steering_per_px,
-                              looks_probability=config.augment_looks)
+                              looks_probability=config.augment_looks,
+                              saturation_min=config.looks_saturation)
         if config.augment else None, seed=config.seed,
         epoch=epochs_done, workers=config.workers, speed_head=config.speed_head,
         # Augment only the rows the network keeps after its crop (same pixels, less work).

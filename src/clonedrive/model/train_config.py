@@ -43,6 +43,7 @@ class TrainConfig:
     augment: bool = True  # training-only augmentation (see data.augment)
     shift_steering_per_px: float = STEERING_PER_PX  # label change per pixel of augment's shift
     augment_looks: float = 0.0  # share of training frames restyled: cast, haze, blur, noise
+    looks_saturation: float = 1.0  # a restyled frame's colour saturation drawn in [this, 1]
     seed: int = 0
     early_stopping_patience: int | None = None  # stop after this many epochs without a best
     dropout: float = 0.0  # 0 = off
@@ -77,6 +78,8 @@ class TrainConfig:
                              f"{MAX_SHIFT_STEERING_PER_PX:g}], got {self.shift_steering_per_px}")
         if not 0.0 <= self.augment_looks <= 1.0:  # also NaN
             raise ValueError(f"augment_looks must be in [0, 1], got {self.augment_looks}")
+        if not 0.0 <= self.looks_saturation <= 1.0:  # also NaN
+            raise ValueError(f"looks_saturation must be in [0, 1], got {self.looks_saturation}")
         if not 0.0 <= self.dropout < 1.0:  # also NaN
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
         if self.early_stopping_patience is not None and self.early_stopping_patience < 1:

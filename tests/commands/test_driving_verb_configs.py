@@ -49,18 +49,18 @@ def test_option_defaults_are_the_configs_defaults():
 @pytest.mark.parametrize("speed", ["nan", "-5", "inf", "0"])
 def test_a_bad_set_speed_is_refused_by_every_driving_verb(speed, tmp_path, capsys):
     assert main(["record", "--out", str(tmp_path / "rec"), "--speed", speed]) == 2
-    assert "speed_mph must be a speed in (0, 30] mph" in capsys.readouterr().err
+    assert "record: --speed must be a speed in (0, 30] mph" in capsys.readouterr().err
     assert not (tmp_path / "rec").exists()
 
     out = tmp_path / "eval"
     assert main(["evaluate", str(tmp_path / "none.keras"), "--speed", speed, "--out",
                  str(out)]) == 2
     err = capsys.readouterr().err
-    assert "set speed must be a speed in (0, 30] mph" in err and err.count("\n") == 1
+    assert "evaluate: --speed must be a speed in (0, 30] mph" in err and err.count("\n") == 1
     assert not out.exists()
 
     assert main(["autonomous", "--speed", speed, "--json"]) == 2
-    assert "speed_mph must be a speed in (0, 30] mph" in capsys.readouterr().err
+    assert "autonomous: --speed must be a speed in (0, 30] mph" in capsys.readouterr().err
 
     if speed != "0":  # drive.py parks the car at 0
         assert main(["drive", str(tmp_path / "none.keras"), "--speed", speed]) == 2
@@ -71,7 +71,7 @@ def test_bad_evaluate_options_are_named(tmp_path, capsys):
     model = str(tmp_path / "none.keras")
     for argv, words in ((["--laps", "0"], "laps must be at least 1"),
                         (["--batch", "0"], "batch must be at least 1"),
-                        (["--unseen-speed", "nan"], "unseen_speed_mph"),
+                        (["--unseen-speed", "nan"], "--unseen-speed must be"),
                         (["--max-seconds", "-1"], "max_seconds"),
                         (["--unseen", "-2"], "unseen must be >= 0")):
         assert main(["evaluate", model, *argv]) == 2, argv

@@ -38,7 +38,7 @@ def test_human_summary_shows_rows_histogram_and_rate(tmp_path, capsys):
 
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys):
     assert main(["record", "--out", str(tmp_path), "--speed", "45"]) == 2
-    assert "speed_mph must be a speed in (0, 30] mph" in capsys.readouterr().err
+    assert "--speed must be a speed in (0, 30] mph" in capsys.readouterr().err
     assert main(["record", "--out", str(tmp_path), "--track", "nowhere"]) == 2
     assert "unknown track 'nowhere'" in capsys.readouterr().err
     assert not (tmp_path / "driving_log.csv").exists()

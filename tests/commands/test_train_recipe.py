@@ -239,3 +239,15 @@ def test_stages_beyond_the_recipe_are_refused(stages: str, tmp_path: Path, capsy
     assert f"--stages {stages}: recipe best has 3 stage(s); give 1 to 3" in \
         capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_folder_of_recordings_is_refused_with_the_recordings_named(tmp_path: Path, capsys):
+    data = tmp_path / "data"
+    (data / "middle").mkdir(parents=True)
+    (data / "middle" / "driving_log.csv").write_text("", encoding="utf-8")
+    out = tmp_path / "runs" / "y"
+    assert main(["train", str(data), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"no driving log in {data}: it holds recordings; give them: clonedrive train " \
+           f"{data / 'middle'}" in err
+    assert not out.exists()  # refused before anything was made

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from clonedrive.commands.counts import MAX_LAPS, count
+from clonedrive.commands.counts import MAX_LAPS, count, speed_flag_error
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -50,6 +50,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    speed_problem = speed_flag_error(args, "--speed")
+    if speed_problem:  # named as the flag the user typed, before anything loads
+        print(f"clonedrive autonomous: {speed_problem}", file=sys.stderr)
+        return 2
     from clonedrive.udacity.client import (
         AutonomousConfig,
         ClientConfig,

@@ -20,6 +20,7 @@ from clonedrive.data.line_count import MAX_LOG_ROWS
 from clonedrive.evaluate.config import MAX_COUNTS as EVALUATE_MAX
 from clonedrive.evaluate.video import FPS_RANGE
 from clonedrive.model.train_config import MAX_COUNTS as TRAIN_MAX
+from clonedrive.world.vehicle import check_set_speed
 
 #: Laps of one run (record, autonomous, dagger's recording and evaluation laps).
 MAX_LAPS = EVALUATE_MAX["laps"]
@@ -71,6 +72,22 @@ def count(most: int) -> Callable[[str], int]:
 
     parse.most = most  # --help states it (cli._HelpFormatter)
     return parse
+
+
+def speed_flag_error(args: argparse.Namespace, *flags: str) -> str | None:
+    """The first of ``flags`` (``--speed``; a repeatable one's every value) whose set speed is
+    not in (0, the car's top speed], as one line naming the flag; None if all are. A config
+    would refuse the same value naming its field, which is not what the user typed."""
+    for flag in flags:
+        value = getattr(args, flag.lstrip("-").replace("-", "_"), None)
+        for speed in value if isinstance(value, list | tuple) else [value]:
+            if speed is None:
+                continue
+            try:
+                check_set_speed(speed, flag)
+            except ValueError as error:
+                return str(error)
+    return None
 
 
 def rate(most: float) -> Callable[[str], float]:

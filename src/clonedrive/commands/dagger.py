@@ -12,6 +12,7 @@ from clonedrive.commands.counts import (
     MAX_UNSEEN,
     MAX_WORKERS,
     count,
+    speed_flag_error,
 )
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
@@ -88,6 +89,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    speed_problem = speed_flag_error(args, "--speed")
+    if speed_problem:  # named as the flag the user typed, before anything loads
+        print(f"clonedrive dagger: {speed_problem}", file=sys.stderr)
+        return 2
     from clonedrive.bench.suite import load_suite
     from clonedrive.data.output_lock import claim_output
     from clonedrive.pipelines.dagger.config import DaggerConfig

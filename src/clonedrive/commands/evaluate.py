@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
+from clonedrive.commands.counts import speed_flag_error
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
@@ -74,6 +75,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    speed_problem = speed_flag_error(args, "--speed", "--unseen-speed")
+    if speed_problem:  # named as the flag the user typed, before anything loads
+        print(f"clonedrive evaluate: {speed_problem}", file=sys.stderr)
+        return 2
     from pathlib import Path
 
     from clonedrive.base.paths import prepare_output_folder

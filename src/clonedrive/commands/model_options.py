@@ -10,6 +10,7 @@ drove). Loading goes through :func:`clonedrive.drivers.policy.load_policy`.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 RUNTIME_CHOICES = ("auto", "keras", "onnx")
 
@@ -118,12 +119,29 @@ def load_policy_from_args(args: argparse.Namespace, model_path: str, **policy_op
     :func:`add_steering_arguments`."""
     from clonedrive.drivers.policy import load_policy
 
+    check_model_path(model_path)
     policy = load_policy(model_path, trust=getattr(args, "trust_model", False),
                          runtime=getattr(args, "runtime", "auto"), **steering_options(args),
                          **policy_options)
     if not getattr(args, "allow_nan_model", True):
         check_finite_on_probe(policy, model_path)
     return policy
+
+
+def check_model_path(model_path: str) -> None:
+    """``FileNotFoundError`` with a hint when ``model_path`` is not a file: a run folder names
+    the model inside it, anything else the kinds of model file there are."""
+    path = Path(model_path)
+    if path.is_file():
+        return
+    if path.is_dir():
+        inside = [str(candidate) for candidate in (path / "model.keras",
+                                                   path / "train" / "model.keras")
+                  if candidate.is_file()]
+        hint = f"did you mean {inside[0]}?" if inside else "give a model file, not a folder"
+        raise FileNotFoundError(f"{model_path}: a folder, not a model file; {hint}")
+    raise FileNotFoundError(f"{model_path}: no such model file (a .keras, .h5 or .onnx file, "
+                            "such as runs/demo/train/model.keras)")
 
 
 #: The probe frame's grey level: a picture with nothing in it, which any model can take.

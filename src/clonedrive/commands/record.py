@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from clonedrive.commands.counts import MAX_LAPS, MAX_OFF_ROAD_EVENTS, count
+from clonedrive.commands.counts import MAX_LAPS, MAX_OFF_ROAD_EVENTS, count, speed_flag_error
 from clonedrive.commands.render_options import add_render_arguments, renderer_error
 from clonedrive.world.names import TRACK_NAMES_HELP
 
@@ -84,6 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    speed_problem = speed_flag_error(args, "--speed")
+    if speed_problem:  # named as the flag the user typed, before anything loads
+        print(f"clonedrive record: {speed_problem}", file=sys.stderr)
+        return 2
     from clonedrive.data.log_folder import RecordingFolderError
     from clonedrive.data.recorder import RecordConfig, record
     from clonedrive.data.row_sink import RecordingWriteError

@@ -168,6 +168,13 @@ def _overrides(args: argparse.Namespace, config_class) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from clonedrive.model.train_config import TrainConfig
+
+    try:  # the options alone first, so that a refused value is named as the command line's
+        _settings(lambda: TrainConfig(**_overrides(args, TrainConfig)), source="command line")
+    except _BadOption as error:
+        print(f"clonedrive train: {error}", file=sys.stderr)
+        return 2
     missing = _missing_input(args)
     if missing:  # before Keras loads, which takes seconds
         print(f"clonedrive train: {missing}", file=sys.stderr)
@@ -271,8 +278,6 @@ def _plan(args: argparse.Namespace):
     from clonedrive.model.train_config import TrainConfig
     from clonedrive.recipes.book import DEFAULT_RECIPE, is_whole_recipe, load_recipe_file
 
-    # The options alone first, so that a refused value is named as the command line's.
-    _settings(lambda: TrainConfig(**_overrides(args, TrainConfig)), source="command line")
     if args.resume and (args.out / "config.json").is_file():
         source = (Path(args.recipe) if _is_file(args.recipe) and not is_whole_recipe(args.recipe)
                   else None) or (args.dirs or None) or args.out / "recipe.toml"
@@ -318,7 +323,19 @@ def _missing_input(args: argparse.Namespace) -> str | None:
     if args.data is not None and not Path(args.data).is_dir():
         return f"--data {args.data}: no such folder"
     for folder in args.dirs or ():
-        if not Path(folder).exists():
+        path = Path(folder)
+        if not path.exists():
             return (f"no driving log at {folder}: expected a folder holding driving_log.csv "
                     "and IMG/")
+        if path.is_dir() and not (path / "driving_log.csv").is_file():
+            return f"no driving log in {folder}: {_recordings_hint(path)}"
     return None
+
+
+def _recordings_hint(folder: Path) -> str:
+    """Where the recordings are when ``folder`` holds them rather than being one."""
+    inside = sorted(str(child) for child in folder.iterdir()
+                    if (child / "driving_log.csv").is_file())[:6]
+    if inside:
+        return f"it holds recordings; give them: clonedrive train {' '.join(inside)} ..."
+    return "expected a folder holding driving_log.csv and IMG/"

@@ -14,6 +14,7 @@ same track from many places, and a hard v2 track takes a few tenths of a second 
 
 from __future__ import annotations
 
+import difflib
 import functools
 from importlib import resources
 from pathlib import Path
@@ -101,7 +102,9 @@ def load_track(name_or_path: str | Path) -> Track:
     path = Path(name)
     if path.suffix == ".json" or path.exists():
         return Track.from_file(path)
+    close = difflib.get_close_matches(name, builtin_track_names(), n=1, cutoff=0.6)
+    guess = f"did you mean {close[0]!r}? " if close else ""
     raise TrackError(
-        f"unknown track {name!r}: use one of {', '.join(builtin_track_names())}, "
+        f"unknown track {name!r}: {guess}use one of {', '.join(builtin_track_names())}, "
         f"{GENERATED_NAMES}, or a path to a track .json file"
     )

@@ -47,3 +47,47 @@ def test_a_failed_write_leaves_neither_file_nor_temporary(tmp_path):
         raise RuntimeError("writer failed")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.png"]
     assert (tmp_path / "keep.png").read_bytes() == b"old"
+
+
+@pytest.mark.parametrize("literal", ["1e999", "-1e999", "1E400"])
+def test_a_number_too_large_for_a_float_is_refused_not_read_as_infinity(tmp_path, literal):
+    from clonedrive.base.config import JsonFileError, read_json
+
+    path = tmp_path / "bench.json"
+    path.write_text(f'{{"value": [1.5, {literal}]}}', encoding="utf-8")
+    with pytest.raises(JsonFileError, match=f"the number {literal} is too large for a float"):
+        read_json(path)
+    path.write_text('{"value": [1.5, 1e300]}', encoding="utf-8")
+    assert read_json(path) == {"value": [1.5, 1e300]}
+
+
+@pytest.mark.parametrize(("setting", "said"), [
+    ("epochs = 2.5", "[train]: epochs must be a whole number, got 2.5"),
+    ("epochs = true", "[train]: epochs must be a whole number, got True"),
+    ("batch_size = 64.5", "[train]: batch_size must be a whole number, got 64.5"),
+    ("seed = 0.5", "[train]: seed must be a whole number, got 0.5"),
+    ("seed = -1", "[train]: seed must be at least 0, got -1"),
+    ("balance = 1", "[train]: balance must be true or false, got 1"),
+    ("consistency = true", "[train]: consistency must be a number, got True"),
+])
+def test_a_recipe_s_training_values_of_the_wrong_type_are_refused_by_file_and_key(
+        tmp_path, setting, said):
+    from clonedrive.recipes.book import load_recipe_file
+    from clonedrive.recipes.training import train_stages
+
+    recipe = tmp_path / "r.toml"
+    recipe.write_text('[recipe]\nname = "x"\nversion = 1\n[[recording]]\nname = "middle"\n'
+                      'track = "lake"\nstyle = "center"\nlaps = 1\nspeed_mph = 20\n'
+                      f'[train]\n{setting}\n', encoding="utf-8")
+    with pytest.raises(ValueError) as refused:
+        train_stages(load_recipe_file(str(recipe)))
+    assert str(refused.value) == f"{recipe}: {said}"
+
+
+def test_numbers_of_numpy_pass_the_type_check():
+    import numpy as np
+
+    from clonedrive.model.train_config import TrainConfig
+
+    config = TrainConfig(epochs=np.int64(3), learning_rate=np.float32(1e-3), seed=np.int64(2))
+    assert config.epochs == 3

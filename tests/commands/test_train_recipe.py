@@ -251,3 +251,13 @@ def test_a_folder_of_recordings_is_refused_with_the_recordings_named(tmp_path: P
     assert f"no driving log in {data}: it holds recordings; give them: clonedrive train " \
            f"{data / 'middle'}" in err
     assert not out.exists()  # refused before anything was made
+
+
+def test_balancing_off_writes_one_histogram_without_a_target(best_run: Path):
+    """best keeps every sample: one histogram of the labels, not a before and an identical
+    after with a target line that nothing was balanced to."""
+    for stage in ("base", "stage2"):
+        assert (best_run / stage / "steering_before.png").is_file()
+        assert not (best_run / stage / "steering_after.png").exists()
+    assert (best_run / "steering_before.png").is_file()
+    assert not (best_run / "steering_after.png").exists()

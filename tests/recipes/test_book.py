@@ -192,3 +192,16 @@ def test_a_bad_bench_table_is_refused_naming_the_file(tmp_path, table, message):
     with pytest.raises(ValueError, match=message) as caught:
         load_recipe_file(path)
     assert "bad.toml" in str(caught.value)
+
+
+def test_an_oversized_recipe_is_refused_for_its_size_by_train(tmp_path, capsys):
+    from clonedrive.cli import main
+    from clonedrive.recipes.book import MAX_RECIPE_BYTES
+
+    big = tmp_path / "big.toml"
+    big.write_text('[recipe]\nname = "x"\nversion = 1\n# ' + "x" * MAX_RECIPE_BYTES + "\n",
+                   encoding="utf-8")
+    assert main(["train", "--recipe", str(big), "--out", str(tmp_path / "o")]) != 0
+    err = capsys.readouterr().err
+    assert f"{big}: {big.stat().st_size} bytes; a recipe file is at most" in err
+    assert "unknown key" not in err and not (tmp_path / "o").exists()

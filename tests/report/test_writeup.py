@@ -45,7 +45,7 @@ def run_dir(tmp_path_factory) -> Path:
                         max_seconds=6.0, video=True), run / "eval", progress=False)
     (run / "dagger.json").write_text(json.dumps(DAGGER_JSON), encoding="utf-8")
     (run / "demo.json").write_text(json.dumps({
-        "config": {"quick": True, "epochs": 1},
+        "config": {"quick": False, "epochs": 1},
         "stages": {"record": {"seconds": 1.5, "rows": 115}, "train": {"seconds": 9.0}},
     }), encoding="utf-8")
     return run
@@ -354,7 +354,9 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     training = _section(result.markdown_path.read_text(encoding="utf-8"),
                         SECTION_TITLES["training"])
     epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
-    assert [row[0] for row in epochs] == ["1 (base)", "2 (fine-tune)"]
+    assert [row[0] for row in epochs] == ["1 (stage 1)", "2 (stage 2)"]
+    settings = dict(row for row in _table_rows(training) if len(row) == 2)
+    assert settings["epochs"] == "2 trained in 2 stages (1 + 1); the last stage's settings here"
     assert [row[-1] for row in epochs] == ["", "best"]  # model.keras is the fine-tune's
     assert "Training ran in 2 stages (the recipe's `[finetune]`)" in training
     markdown = result.markdown_path.read_text(encoding="utf-8")
@@ -370,6 +372,32 @@ def test_a_two_stage_run_shows_both_stages_epochs(tmp_path: Path, run_dir: Path)
     markdown = result.markdown_path.read_text(encoding="utf-8")
     training = _section(markdown, SECTION_TITLES["training"])
     epochs = [row for row in _table_rows(training) if row[0][:1].isdigit()]
-    assert [row[0] for row in epochs] == ["1 (base)", "2 (stage2)", "3 (fine-tune)"]
+    assert [row[0] for row in epochs] == ["1 (stage 1)", "2 (stage 2)", "3 (stage 3)"]
     assert "Training ran in 3 stages" in training and "1 epoch(s) into `stage2/`" in training
     assert "1 epoch from scratch (`base/`), then 2 fine-tune stages of 1 + 1 epochs" in markdown
+
+
+def test_a_run_without_balancing_shows_one_histogram(tmp_path: Path, run_dir: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    dataset = json.loads((run / "train" / "dataset.json").read_text(encoding="utf-8"))
+    dataset["balance"]["enabled"] = False
+    (run / "train" / "dataset.json").write_text(json.dumps(dataset), encoding="utf-8")
+    (run / "train" / "steering_after.png").unlink()
+    markdown = write_report(run, tmp_path / "report").markdown_path.read_text(encoding="utf-8")
+    balance = _section(markdown, SECTION_TITLES["balance"])
+    assert "balancing **off**" in balance
+    assert "(balancing off: every sample kept)" in balance
+    assert "dashed line" not in balance and "steering_after" not in balance
+
+
+def test_saliency_finds_a_frame_in_the_recordings_the_training_names(tmp_path: Path,
+                                                                      run_dir: Path) -> None:
+    """A run trained on recordings outside its folder (train data/middle --out runs/x) and
+    not evaluated still gets an ordinary frame to look at."""
+    run = tmp_path / "run"
+    shutil.copytree(run_dir / "train", run / "train")
+    markdown = write_report(run, tmp_path / "report").markdown_path.read_text(encoding="utf-8")
+    saliency = _section(markdown, SECTION_TITLES["saliency"])
+    assert "The run folder holds no evaluation; an ordinary frame (lake_left, row " in saliency
+    assert "No frame to look at" not in markdown

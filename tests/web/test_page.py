@@ -101,6 +101,15 @@ def test_a_takeover_is_counted_and_letting_go_hands_back(page):
     wait_until(page, "s.mode === 'manual'")
 
 
+def test_p_hands_the_car_to_the_model_and_back_as_in_the_window(page):
+    page.keyboard.press("p")
+    wait_until(page, "s.mode === 'model'")
+    page.keyboard.press("p")
+    wait_until(page, "s.mode === 'manual'")
+    legend = page.inner_text("#help")
+    assert "P: the model drives" in legend and "M: mouse steering" in legend
+
+
 def test_a_foreign_page_cannot_open_the_socket(page, web_app, browser):
     """Another site's page (another port of this machine), in the same browser, knowing the
     token even: the server refuses its upgrade."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import sys
 from collections.abc import Iterable, Iterator
@@ -51,6 +52,46 @@ def config_from_dict(cls: type[T], values: dict[str, Any], *, source: str = "con
         return cls(**values)
     except (TypeError, ValueError) as error:  # __post_init__'s checks (a str where a number...)
         raise ValueError(f"{source}: {error}") from None
+
+
+def check_field_types(config: Any) -> None:
+    """``ValueError`` naming the first field of the dataclass ``config`` whose value is not of
+    its annotated type: ``int`` (not a bool), ``float`` (an int is one; not a bool), ``bool``,
+    ``str``, or one of those ``| None``. Other annotations are not checked. A recipe's
+    ``epochs = 2.5`` or ``batch_size = true`` is refused here, before any data is read."""
+    import types
+    import typing
+
+    hints = typing.get_type_hints(type(config))
+    for field in dataclasses.fields(config):
+        expected = hints.get(field.name)
+        value = getattr(config, field.name)
+        allowed = (typing.get_args(expected)
+                   if isinstance(expected, types.UnionType) else (expected,))
+        if not all(kind in _CHECKED or kind is type(None) for kind in allowed):
+            continue
+        if not any(_is_a(value, kind) for kind in allowed):
+            names = " or ".join(_CHECKED.get(kind, "None") for kind in allowed)
+            raise ValueError(f"{field.name} must be {names}, got {value!r}")
+
+
+#: The annotations :func:`check_field_types` checks, and how its message names each.
+_CHECKED = {int: "a whole number", float: "a number", bool: "true or false", str: "text"}
+
+
+def _is_a(value: Any, kind: type) -> bool:
+    """``value`` is of ``kind`` (NumPy's numbers count as Python's)."""
+    import numbers
+
+    if kind is type(None):
+        return value is None
+    if isinstance(value, bool):
+        return kind is bool
+    if kind is int:
+        return isinstance(value, numbers.Integral)
+    if kind is float:
+        return isinstance(value, numbers.Real)
+    return isinstance(value, kind)
 
 
 def config_to_dict(config: Any) -> dict[str, Any]:
@@ -224,7 +265,11 @@ def read_json(path: str | os.PathLike, *, max_bytes: int = MAX_JSON_BYTES,
                 raise JsonFileError(
                     f"{path}: a number of {len(literal)} characters ({literal[:12]}...); "
                     f"at most {MAX_JSON_NUMBER_CHARS} are accepted")
-            return kind(literal)
+            value = kind(literal)
+            if kind is float and not math.isfinite(value):  # 1e999 reads as infinity
+                raise JsonFileError(f"{path}: the number {literal[:24]} is too large for a "
+                                    "float; use a finite number")
+            return value
         return parse
 
     def constant(name: str) -> Any:

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from clonedrive.base.config import config_to_dict, write_json_atomic
 from clonedrive.base.udacity_spec import SPEED_KI, SPEED_KP
-from clonedrive.bench import DEFAULT_SUITE
+from clonedrive.bench import DEFAULT_SUITE, MAX_BATCH
 from clonedrive.bench.scores import (
     dev_agreement,
     method_intervals,
@@ -86,8 +86,8 @@ class BenchConfig:
         if self.runtime not in ("auto", "keras", "onnx"):
             raise ValueError(f"runtime {self.runtime!r}; expected auto, keras or onnx")
         check_renderer(self.renderer)
-        if not 1 <= self.batch <= 64:
-            raise ValueError(f"batch must be in [1, 64], got {self.batch}")
+        if not 1 <= self.batch <= MAX_BATCH:
+            raise ValueError(f"batch must be in [1, {MAX_BATCH}], got {self.batch}")
         if self.max_seconds is not None and not (math.isfinite(self.max_seconds)
                                                  and self.max_seconds > 0):
             raise ValueError(f"max_seconds must be positive, got {self.max_seconds}")

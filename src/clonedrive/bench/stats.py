@@ -44,10 +44,19 @@ def bootstrap_ci(values: Sequence[float], *, statistic: Callable = np.mean,
     data = np.asarray([v for v in values if v is not None], dtype=float)
     if data.size == 0:
         return {"value": None, "low": None, "high": None, "n": 0}
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, data.size, size=(resamples, data.size))
-    spread = statistic(data[draws], axis=1)
+    spread = np.concatenate([statistic(data[draws], axis=1)
+                             for draws in _draws(seed, resamples, data.size)])
     return _interval(float(statistic(data)), spread, data.size)
+
+
+def _draws(seed: int, resamples: int, size: int):
+    """``resamples`` rows of ``size`` episode indices drawn with replacement, in blocks of at
+    most :data:`MAX_DRAWN_VALUES` values: the same rows, in the same order, as one draw of
+    ``(resamples, size)`` (the generator is consumed value by value), in bounded memory."""
+    rng = np.random.default_rng(seed)
+    rows = max(1, MAX_DRAWN_VALUES // max(size, 1))
+    for start in range(0, resamples, rows):
+        yield rng.integers(0, size, size=(min(rows, resamples - start), size))
 
 
 def ratio_ci(numerators: Sequence[float], denominators: Sequence[float], *,
@@ -58,10 +67,13 @@ def ratio_ci(numerators: Sequence[float], denominators: Sequence[float], *,
     bottom = np.asarray(denominators, dtype=float)
     if top.size == 0 or bottom.sum() <= 0:
         return {"value": None, "low": None, "high": None, "n": int(top.size)}
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, top.size, size=(resamples, top.size))
-    sums = bottom[draws].sum(axis=1)
-    spread = np.where(sums > 0, top[draws].sum(axis=1) / np.where(sums > 0, sums, 1.0), np.nan)
+    tops, sums = [], []
+    for draws in _draws(seed, resamples, top.size):
+        tops.append(top[draws].sum(axis=1))
+        sums.append(bottom[draws].sum(axis=1))
+    drawn_top, drawn_sum = np.concatenate(tops), np.concatenate(sums)
+    spread = np.where(drawn_sum > 0, drawn_top / np.where(drawn_sum > 0, drawn_sum, 1.0),
+                      np.nan)
     spread = spread[np.isfinite(spread)]
     return _interval(float(top.sum() / bottom.sum()), spread, top.size)
 

@@ -6,8 +6,8 @@ import json
 import sys
 from pathlib import Path
 
-from clonedrive.bench import DEFAULT_SUITE
-from clonedrive.commands.counts import MAX_RUN_BATCH, MAX_WORKERS, count
+from clonedrive.bench import DEFAULT_SUITE, MAX_BATCH
+from clonedrive.commands.counts import MAX_WORKERS, count
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
@@ -60,7 +60,7 @@ def add_arguments(parser) -> None:
                         help="worker processes (default: one per CPU core)")
     parser.add_argument("--ray", default=None, metavar="auto|ADDRESS",
                         help="run the batches as Ray tasks (pip install 'clonedrive[cluster]')")
-    parser.add_argument("--batch", type=count(MAX_RUN_BATCH), default=4,
+    parser.add_argument("--batch", type=count(MAX_BATCH), default=4,
                         help="episodes one worker drives in lock-step")
     parser.add_argument("--offline-data", action="append", default=None, metavar="DIR",
                         help="held-out recordings: report each model's offline MSE beside its "

@@ -252,7 +252,7 @@ def _balance(config: DatasetConfig, samples: Samples, lines: list[str], out: Pat
     """(the samples kept, the balancing result for the histograms, samples kept back for the
     speed head), the steps said in ``lines``; the histograms before and after written into
     ``out``."""
-    from clonedrive.data.balance import balance_steering, save_balance_plots
+    from clonedrive.data.balance import balance_steering, plot_histogram, save_balance_plots
 
     balanced = balance_steering(samples.steering, np.random.default_rng([config.seed, 1]),
                                 bins=config.balance_bins)
@@ -272,7 +272,12 @@ def _balance(config: DatasetConfig, samples: Samples, lines: list[str], out: Pat
                          f"expert slows below {SLOWING_LABEL_MPH:g} mph kept back")
         lines.append(balanced.summary())
         samples = samples.subset(keep)
-    save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
+    if config.balance:
+        save_balance_plots(balanced, out / "steering_before.png", out / "steering_after.png")
+    else:  # one histogram, no target: nothing was thinned out
+        plot_histogram(balanced.counts_before, balanced.bin_edges, out / "steering_before.png",
+                       title="steering labels, balancing off")
+        (out / "steering_after.png").unlink(missing_ok=True)  # a resumed run's older one
     return samples, balanced, kept_for_speed
 
 

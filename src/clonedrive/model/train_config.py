@@ -7,6 +7,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from clonedrive.base.config import check_field_types
 from clonedrive.data.augment import STEERING_PER_PX
 from clonedrive.data.balance import DEFAULT_BINS
 from clonedrive.data.dataset import DatasetConfig
@@ -60,6 +61,9 @@ class TrainConfig:
     consistency: float = 0.0  # weight of the next-frame consistency penalty (model.consistency)
 
     def __post_init__(self) -> None:
+        check_field_types(self)  # epochs = 2.5, batch_size = true... named before anything
+        if self.seed < 0:
+            raise ValueError(f"seed must be at least 0, got {self.seed}")
         self.dataset_config()  # checks split and cache
         if self.batch_size < 1 or self.epochs < 1:
             raise ValueError("batch_size and epochs must be >= 1")

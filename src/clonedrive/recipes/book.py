@@ -215,8 +215,9 @@ def is_whole_recipe(path: str | os.PathLike) -> bool:
         return True
     try:
         size = Path(path).stat().st_size
-        if size > MAX_RECIPE_BYTES:
-            return False
+        if size > MAX_RECIPE_BYTES:  # neither kind of recipe: say so, not what it lacks
+            raise ValueError(f"{path}: {size} bytes; a recipe file is at most "
+                             f"{MAX_RECIPE_BYTES}")
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):  # refused, with its reason, where it is loaded
         return False

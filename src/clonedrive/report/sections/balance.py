@@ -28,7 +28,7 @@ def build(ctx: ReportContext) -> list[Section]:
             balance = dataset["balance"]
             figures.append(plot_histogram(
                 np.asarray(balance[f"counts_{stage}"]), np.asarray(balance["bin_edges"]),
-                ctx.figures_dir / source.name, title=f"steering {stage} balancing",
+                ctx.figures_dir / f"steering_{stage}.png", title=f"steering {stage} balancing",
                 target=balance.get("target_per_bin")))
     if dataset is None and not figures:
         return ctx.missing(title, f"No `dataset.json` or steering histograms in "
@@ -66,7 +66,11 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(Table(("", "count"), tuple(rows), align="lr"))
     else:
         section.blocks.append(ctx.note(f"No `dataset.json` in `{train}`: counts unknown."))
-    if figures:
+    balanced = (dataset or {}).get("balance", {}).get("enabled", True)
+    if figures and not balanced:  # one histogram: balancing kept every sample
+        section.blocks.append(Figure(figures[0], "Steering labels of the training samples "
+                                                 "(balancing off: every sample kept)."))
+    elif figures:
         section.blocks.append(Gallery(tuple(
             Figure(path, f"Steering labels {stage} balancing; dashed line: the target per "
                          "bin.")

@@ -19,6 +19,8 @@ from clonedrive.report.document import Figure, Paragraph, Section
 
 #: Off-road frames shown at most (the first ones).
 MAX_EVENT_FRAMES = 5
+#: Recordings named by the training that are tried for an ordinary frame.
+MAX_TRAINED_ON = 8
 #: Overlays from ``clonedrive saliency`` shown at most (the first of its ``saliency.json``).
 MAX_WRITTEN_OVERLAYS = 6
 
@@ -40,8 +42,9 @@ def _computed(ctx: ReportContext) -> tuple[list, str]:
         return [], "No `model.keras`: no saliency maps."
     frames = _frames(ctx)
     if not frames:
-        return [], ("No frame to look at: neither off-road frames in the evaluation nor a "
-                    "recording, and no overlays from `clonedrive saliency` in the run folder.")
+        return [], ("No frame to look at: no off-road frames in the evaluation, no readable "
+                    "recording (in the run folder's `data/`, or named by the training's "
+                    "`dataset.json`), and no overlays from `clonedrive saliency`.")
     import numpy as np
 
     from clonedrive.model.saliency import VisualBackProp, overlay
@@ -68,8 +71,16 @@ def _computed(ctx: ReportContext) -> tuple[list, str]:
         "and lines ahead. "
         + (f"The first {events} off-road frame(s) are shown above an ordinary frame: compare "
            "what lit up when the car left the road with what lights up when it drives well."
-           if events else "No tyre left the road; an ordinary frame is shown."))
+           if events else _no_event_text(ctx, frames)))
     return [Paragraph(text), Figure(path, "Each frame beside its VisualBackProp overlay.")], ""
+
+
+def _no_event_text(ctx: ReportContext, frames: list) -> str:
+    """What is shown when no off-road frame is, and why."""
+    ordinary = next((label.removeprefix("ordinary: ") for label, _ in frames
+                     if label.startswith("ordinary: ")), "")
+    why = "No tyre left the road" if ctx.eval else "The run folder holds no evaluation"
+    return f"{why}; an ordinary frame ({ordinary}) is shown."
 
 
 def _written(ctx: ReportContext) -> list:
@@ -146,10 +157,11 @@ def _frames(ctx: ReportContext) -> list[tuple[str, object]]:
 
 
 def _ordinary_frame(ctx: ReportContext):
-    """The center frame in the middle of the first recording, as (label, image)."""
+    """The center frame in the middle of the first recording (the run folder's, else the first
+    the training names), as (label, image)."""
     from clonedrive.data.driving_log import DrivingLogError, read_driving_log
 
-    for folder in ctx.parts.recordings:
+    for folder in [*ctx.parts.recordings, *_trained_on(ctx)]:
         try:
             rows = read_driving_log(folder, verify_images="exists").rows
         except (DrivingLogError, OSError, ValueError):
@@ -160,3 +172,13 @@ def _ordinary_frame(ctx: ReportContext):
             if image is not None:
                 return (f"ordinary: {folder.name}, row {row.row}", image)
     return None
+
+
+def _trained_on(ctx: ReportContext) -> list[Path]:
+    """The recording folders ``dataset.json`` says the training read (first few)."""
+    recordings = (ctx.dataset or {}).get("recordings")
+    if not isinstance(recordings, list):
+        return []
+    paths = [entry.get("path") for entry in recordings[:MAX_TRAINED_ON]
+             if isinstance(entry, dict)]
+    return [Path(path) for path in paths if isinstance(path, str) and path]

@@ -25,6 +25,7 @@ def build(ctx: ReportContext) -> list[Section]:
     section = Section(title)
     split = (ctx.dataset or {}).get("split") or {}
     kind = split.get("kind") or (settings or {}).get("split")
+    earlier = _earlier_stages(train)
     if settings is not None:
         from clonedrive.model.train_config import TrainConfig
 
@@ -37,7 +38,7 @@ def build(ctx: ReportContext) -> list[Section]:
                         "difference of neighbouring frames' errors (consistency)"
                         if settings.get("consistency") else "")),
             ("batch size", str(settings.get("batch_size", "?"))),
-            ("epochs", f"{len(history)} trained ({settings.get('epochs', '?')} configured)"
+            ("epochs", _epochs_text(earlier, history, settings)
                        + (f", early stopping after {settings['early_stopping_patience']} "
                           "epochs without improvement"
                           if settings.get("early_stopping_patience") else "")),
@@ -55,7 +56,6 @@ def build(ctx: ReportContext) -> list[Section]:
         section.blocks.append(ctx.note(f"No `config.json` in `{train}`: settings unknown."))
     section.blocks.append(Paragraph(_split_text(kind, split.get("description"))))
 
-    earlier = _earlier_stages(train)
     base_history = [row for _, rows in earlier for row in rows]
     base = len(earlier[0][1]) if earlier else 0  # the first stage's epochs
     history = _numbered_on(base_history, history)  # one numbering for headline, table and plot
@@ -76,9 +76,9 @@ def build(ctx: ReportContext) -> list[Section]:
                                "mse": "training MSE", "val_mse": "validation MSE",
                                "seconds": "seconds"}[c] for c in columns], "")
         table_rows = tuple(
-            (f"{row['epoch']} ({name})", *[_cell(row, c) for c in columns], "")
-            for name, rows in earlier for row in rows) + tuple(
-            (str(row["epoch"]) + (" (fine-tune)" if base else ""),
+            (f"{row['epoch']} (stage {number})", *[_cell(row, c) for c in columns], "")
+            for number, (_, rows) in enumerate(earlier, start=1) for row in rows) + tuple(
+            (str(row["epoch"]) + (f" (stage {len(earlier) + 1})" if base else ""),
              *[_cell(row, c) for c in columns], "best" if row is best else "")
             for row in history)
         whose = "the fine-tune's epoch" if base else "the epoch"
@@ -93,6 +93,16 @@ def build(ctx: ReportContext) -> list[Section]:
     if figure_path is not None:
         section.blocks.append(Figure(figure_path, "Training and validation loss per epoch."))
     return [section]
+
+
+def _epochs_text(earlier: list[tuple[str, list[dict]]], history: list[dict],
+                 settings: dict) -> str:
+    """How many epochs ran: one stage's against its setting, or every stage's."""
+    if not earlier:
+        return f"{len(history)} trained ({settings.get('epochs', '?')} configured)"
+    counts = [len(rows) for _, rows in earlier] + [len(history)]
+    return (f"{sum(counts)} trained in {len(counts)} stages ({' + '.join(map(str, counts))}); "
+            f"the last stage's settings here")
 
 
 def _split_text(kind: str | None, description: str | None) -> str:

@@ -45,6 +45,8 @@ def picture(page) -> str:
 def test_the_page_shows_the_track_and_its_hud(page):
     s = state(page)
     assert s["track"] == "lake" and s["mode"] == "manual" and not s["recording"]
+    assert s["time_s"] > 0 and s["speed_mph"] == 0.0  # parked: no -0.1 mph
+    assert s["lap_time_s"] == 0.0  # the lap's clock waits for the car to move
     assert "lake" in page.inner_text("#status") and "mph" in page.inner_text("#status")
     assert page.evaluate("window.clonedrive.hello.tracks")[:2] == ["lake", "mountain"]
 

@@ -21,6 +21,8 @@ from clonedrive.web.config import EXPERT, MANUAL, MODEL, TAKEOVER, WebConfig
 from clonedrive.web.messages import Command
 
 logger = logging.getLogger("clonedrive.web")
+#: Slower than this [mph], the car is parked: the HUD shows 0 and the first lap's clock waits.
+PARKED_MPH = 0.2
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,7 @@ class Controller:
         self._laps_seen = 0
         self._lap_start_s = 0.0
         self._last_lap_s: float | None = None
+        self._rolling = False  # the car has moved since the track was opened
         #: The track to fall back to when a chosen one fails to load (the last one driven, or
         #: the first one asked for, whose load a page's command can overtake), and direction.
         self._opened: tuple[str, bool] | None = (track, bool(reverse))
@@ -208,6 +211,12 @@ class Controller:
     def _track_laps(self, obs) -> None:
         if obs.laps < self._laps_seen or obs.time_s < self._lap_start_s:  # a new track
             self._laps_seen, self._lap_start_s, self._last_lap_s = 0, obs.time_s, None
+            self._rolling = False
+        if not self._rolling:  # the first lap's clock starts when the car first moves
+            if abs(obs.speed_mph) < PARKED_MPH:
+                self._lap_start_s = obs.time_s
+            else:
+                self._rolling = True
         if obs.laps > self._laps_seen:
             self._last_lap_s = obs.time_s - self._lap_start_s
             self._laps_seen, self._lap_start_s = obs.laps, obs.time_s
@@ -234,7 +243,8 @@ class Controller:
             "track": session.track_name, "reverse": session.reverse, "look": self.look,
             "view": self.view, "mode": self.pilot_mode, "hud_mode": hud.mode,
             "steering_source": session.steering_source,
-            "speed_mph": round(obs.speed_mph, 2), "steering": round(controls.steering, 3),
+            "speed_mph": 0.0 if abs(obs.speed_mph) < PARKED_MPH else round(obs.speed_mph, 2),
+            "steering": round(controls.steering, 3),
             "throttle": round(controls.throttle, 3), "brake": round(controls.brake, 3),
             "laps": obs.laps, "lap_time_s": round(obs.time_s - self._lap_start_s, 1),
             "last_lap_s": None if self._last_lap_s is None else round(self._last_lap_s, 1),

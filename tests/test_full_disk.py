@@ -38,8 +38,10 @@ def test_train_refuses_a_memmap_cache_the_disk_cannot_hold(disk: Path) -> None:
     assert "Traceback" not in finished.stderr
     line = last_line(finished.stderr)
     assert line.startswith(f"clonedrive train: {run}/") and "image_cache" in line
-    assert ": no space left on device for the image cache: it needs 2.5 MiB, 0." in line
+    assert ": no space left on device for the image cache: it needs 2.5 MiB, " in line
     assert line.endswith(" MiB are free")
+    free_mib = float(line.rsplit(", ", 1)[1].split(" ")[0])
+    assert free_mib < 2.5  # what the small disk has left after the run's other files
     assert not list(run.rglob("*.keras"))
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from support.measured import run_measured
 
+from clonedrive.bench import MAX_BATCH as MAX_BENCH_BATCH
 from clonedrive.cli import main
 from clonedrive.commands import counts
 
@@ -30,7 +31,7 @@ OPTIONS = [
     (["demo"], "--unseen", counts.MAX_UNSEEN),
     (["demo"], "--workers", counts.MAX_WORKERS),
     (["bench", "model.keras"], "--workers", counts.MAX_WORKERS),
-    (["bench", "model.keras"], "--batch", counts.MAX_RUN_BATCH),
+    (["bench", "model.keras"], "--batch", MAX_BENCH_BATCH),
     (["saliency", "model.keras", "rec", "--out", "s"], "--frames-per-log", None),
     (["sim"], "--steps", counts.MAX_STEPS),
     (["drive", "model.keras"], "--max-connections", counts.MAX_CONNECTIONS),

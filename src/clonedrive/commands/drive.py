@@ -9,14 +9,13 @@ import socket
 import sys
 
 from clonedrive.base.udacity_spec import SET_SPEED_MPH
-from clonedrive.commands.counts import MAX_CONNECTIONS, count
+from clonedrive.commands.counts import MAX_CONNECTIONS, count, speed_flag_error
 from clonedrive.commands.model_options import (
     add_model_arguments,
     add_steering_arguments,
     load_policy_from_args,
 )
 from clonedrive.udacity.server_config import DriveServerConfig
-from clonedrive.world.vehicle import check_set_speed
 
 HELP = "serve a steering model to the Udacity simulator (drop-in for drive.py)"
 DESCRIPTION = (
@@ -74,12 +73,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # our own lines say enough
-    if args.speed != 0:  # 0 parks the car, as drive.py allows
-        try:
-            check_set_speed(args.speed, "--speed")
-        except ValueError as error:
-            print(f"clonedrive drive: {error}", file=sys.stderr)
-            return 2
+    speed_problem = speed_flag_error(args, "--speed") if args.speed != 0 else None
+    if speed_problem:  # 0 parks the car, as drive.py allows
+        print(f"clonedrive drive: {speed_problem}", file=sys.stderr)
+        return 2
     try:
         config = DriveServerConfig(
             host=args.host, port=args.port, image_folder=args.image_folder,

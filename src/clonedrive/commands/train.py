@@ -212,8 +212,8 @@ def run(args: argparse.Namespace) -> int:
         "val_samples": result.dataset["val_samples"],
         "skipped_rows": result.dataset["skipped_rows"],
         "skipped_images": result.dataset["skipped_images"],
+        "stages": len(stages),
     }
-    summary["stages"] = len(stages)
     if args.json:
         print(json.dumps(summary))
     else:

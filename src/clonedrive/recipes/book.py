@@ -200,11 +200,16 @@ def load_recipe_file(name_or_path: str | os.PathLike) -> RecipeFile:
     if not path.is_file():
         raise FileNotFoundError(f"recipe {text_name!r} not found: not a file, nor one of the "
                                 f"built-in recipes ({recipe_choices_text()})")
+    _check_size(path)
+    text = path.read_text(encoding="utf-8", errors="replace")
+    return parse_recipe_file(text, source=str(path), base_dir=path.parent)
+
+
+def _check_size(path: Path) -> None:
+    """``ValueError`` naming ``path`` if it is larger than a recipe file may be."""
     size = path.stat().st_size
     if size > MAX_RECIPE_BYTES:
         raise ValueError(f"{path}: {size} bytes; a recipe file is at most {MAX_RECIPE_BYTES}")
-    text = path.read_text(encoding="utf-8", errors="replace")
-    return parse_recipe_file(text, source=str(path), base_dir=path.parent)
 
 
 def is_whole_recipe(path: str | os.PathLike) -> bool:
@@ -214,10 +219,7 @@ def is_whole_recipe(path: str | os.PathLike) -> bool:
     if str(path) in BUILT_IN:
         return True
     try:
-        size = Path(path).stat().st_size
-        if size > MAX_RECIPE_BYTES:  # neither kind of recipe: say so, not what it lacks
-            raise ValueError(f"{path}: {size} bytes; a recipe file is at most "
-                             f"{MAX_RECIPE_BYTES}")
+        _check_size(Path(path))  # too large for either kind of recipe: say so, not what it lacks
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):  # refused, with its reason, where it is loaded
         return False
